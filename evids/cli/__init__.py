@@ -1,0 +1,37 @@
+"""The `evids` command line: one entry point, thin sub-commands over tested library code.
+
+Each sub-command lives in its own module with a ``register(app)`` function; this module only
+assembles them and turns expected errors into a one-line message and exit status 2.
+"""
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from evids.errors import UserInputError
+
+app = typer.Typer(
+    name="evids",
+    help="Synthetic counter-drone scenarios (RGB/thermal/audio/RF), sensor degradations and "
+    "evidential-fusion experiments, all on the CPU.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+def _register_all() -> None:
+    from evids.cli import render as render_cli
+
+    render_cli.register(app)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console entry point; expected input errors print one line and exit 2."""
+    _register_all()
+    try:
+        app(args=argv, standalone_mode=True)
+    except UserInputError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        sys.exit(2)

@@ -1,0 +1,52 @@
+"""Default materials and thermal offsets per target kind and part role.
+
+Values are typical, documented choices: matte plastic/carbon bodies (emissivity 0.9), anodised or
+bare-metal motors (0.3: they mirror the cold sky), warm motors and batteries in flight.
+"""
+from __future__ import annotations
+
+from scenes.schema import Material, Target
+
+_MATERIALS: dict[str, Material] = {
+    "body": Material(rgb_reflectance=(0.06, 0.06, 0.065), emissivity=0.92),
+    "arm": Material(rgb_reflectance=(0.05, 0.05, 0.05), emissivity=0.9),
+    "motor": Material(rgb_reflectance=(0.35, 0.35, 0.37), emissivity=0.3),
+    "prop": Material(rgb_reflectance=(0.04, 0.04, 0.04), emissivity=0.88),
+    "battery": Material(rgb_reflectance=(0.15, 0.15, 0.16), emissivity=0.9),
+    "camera": Material(rgb_reflectance=(0.03, 0.03, 0.03), emissivity=0.85),
+    "wing": Material(rgb_reflectance=(0.7, 0.7, 0.72), emissivity=0.88),
+    "fuselage": Material(rgb_reflectance=(0.75, 0.75, 0.78), emissivity=0.85),
+    "tail": Material(rgb_reflectance=(0.7, 0.7, 0.72), emissivity=0.85),
+    "engine": Material(rgb_reflectance=(0.5, 0.5, 0.52), emissivity=0.6),
+    "head": Material(rgb_reflectance=(0.2, 0.18, 0.15), emissivity=0.95),
+    "feather": Material(rgb_reflectance=(0.25, 0.22, 0.18), emissivity=0.95),
+}
+
+_OFFSETS_K: dict[str, dict[str, float]] = {
+    "quadcopter": {"body": 6.0, "arm": 3.0, "motor": 25.0, "prop": 1.0, "battery": 12.0, "camera": 8.0},
+    "hexacopter": {"body": 6.0, "arm": 3.0, "motor": 28.0, "prop": 1.0, "battery": 14.0, "camera": 8.0},
+    "fixed_wing": {"fuselage": 4.0, "wing": 1.0, "tail": 1.0, "motor": 30.0, "prop": 1.0, "body": 4.0},
+    "bird": {"body": 8.0, "head": 10.0, "feather": 2.0, "wing": 2.0},
+    "airliner": {"fuselage": -2.0, "wing": -3.0, "tail": -3.0, "engine": 80.0},
+}
+
+_MATERIAL_OVERRIDES: dict[str, dict[str, Material]] = {
+    "bird": {
+        "body": Material(rgb_reflectance=(0.25, 0.22, 0.18), emissivity=0.95),
+        "wing": Material(rgb_reflectance=(0.22, 0.2, 0.17), emissivity=0.95),
+    },
+}
+
+
+def material_for(target: Target, role: str) -> Material:
+    if role in target.materials:
+        return target.materials[role]
+    kind_overrides = _MATERIAL_OVERRIDES.get(target.kind, {})
+    return kind_overrides.get(role, _MATERIALS.get(role, _MATERIALS["body"]))
+
+
+def offset_for(target: Target, role: str, *, end: bool = False) -> float:
+    source = target.thermal.offsets_end_k if end and target.thermal.offsets_end_k is not None else target.thermal.offsets_k
+    if role in source:
+        return source[role]
+    return _OFFSETS_K[target.kind].get(role, 2.0)

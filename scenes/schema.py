@@ -1,0 +1,206 @@
+"""Declarative, renderer-free scene model (pydantic). YAML in, YAML out.
+
+World frame: ENU metres, +z up; the camera rig usually stands near the origin. Angles in degrees in
+the YAML (names end in _deg); temperatures in kelvin (names end in _k).
+"""
+from __future__ import annotations
+
+import datetime as dt
+from typing import Annotated, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+SCHEMA_VERSION = 1
+
+TargetKind = Literal["quadcopter", "hexacopter", "fixed_wing", "bird", "airliner"]
+Vec3 = tuple[float, float, float]
+RGB = tuple[
+    Annotated[float, Field(ge=0.0, le=1.0)],
+    Annotated[float, Field(ge=0.0, le=1.0)],
+    Annotated[float, Field(ge=0.0, le=1.0)],
+]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Material(_Model):
+    """Surface of one part: visible reflectance (linear sRGB albedo) and LWIR emissivity."""
+
+    rgb_reflectance: RGB
+    emissivity: float = Field(ge=0.01, le=1.0)
+
+
+class Thermal(_Model):
+    """How part temperatures are set.
+
+    - ``offset``: T = air temperature + offsets_k[role] (+ a linear ramp to offsets_end_k if given).
+    - ``absolute``: T = absolute_k[role].
+    - ``match_background``: solve each part's temperature so its apparent radiance equals the sky
+      behind the target plus ``contrast_k`` (ramping linearly to ``contrast_end_k``); contrast 0 is
+      a physical thermal crossover.
+    """
+
+    mode: Literal["offset", "absolute", "match_background"] = "offset"
+    offsets_k: dict[str, float] = Field(default_factory=dict)
+    offsets_end_k: dict[str, float] | None = None
+    absolute_k: dict[str, Annotated[float, Field(gt=100.0, lt=1500.0)]] = Field(default_factory=dict)
+    contrast_k: float = 0.0
+    contrast_end_k: float | None = None
+
+    @model_validator(mode="after")
+    def _absolute_needs_values(self) -> "Thermal":
+        if self.mode == "absolute" and not self.absolute_k:
+            raise ValueError("mode 'absolute' needs absolute_k: {role: kelvin}")
+        return self
+
+
+class Waypoints(_Model):
+    """Catmull-Rom spline through points_m, flown at constant speed_mps (loops if ``loop``)."""
+
+    kind: Literal["waypoints"] = "waypoints"
+    points_m: list[Vec3] = Field(min_length=2)
+    speed_mps: float = Field(gt=0.0, le=300.0)
+    loop: bool = False
+
+
+class Hover(_Model):
+    """Station keeping at center_m with smooth random drift of about drift_m (seeded)."""
+
+    kind: Literal["hover"] = "hover"
+    center_m: Vec3
+    drift_m: float = Field(default=0.5, ge=0.0)
+    drift_period_s: float = Field(default=4.0, gt=0.0)
+
+
+class Orbit(_Model):
+    """Circle of radius_m around center_m at constant speed; start_angle_deg from +x toward +y."""
+
+    kind: Literal["orbit"] = "orbit"
+    center_m: Vec3
+    radius_m: float = Field(gt=0.0)
+    speed_mps: float = Field(gt=0.0, le=300.0)
+    clockwise: bool = False
+    start_angle_deg: float = 0.0
+
+
+class Flyby(_Model):
+    """Straight line from start_m with constant velocity_mps."""
+
+    kind: Literal["flyby"] = "flyby"
+    start_m: Vec3
+    velocity_mps: Vec3
+
+
+Trajectory = Annotated[Union[Waypoints, Hover, Orbit, Flyby], Field(discriminator="kind")]
+
+
+class Target(_Model):
+    name: str = Field(min_length=1)
+    kind: TargetKind
+    size_m: float = Field(gt=0.0, le=100.0)
+    trajectory: Trajectory
+    materials: dict[str, Material] = Field(default_factory=dict, description="per-role overrides")
+    thermal: Thermal = Field(default_factory=Thermal)
+    wingbeat_hz: float = Field(default=4.0, gt=0.0, le=30.0, description="birds only")
+
+
+class Sun(_Model):
+    """Either elevation_deg/azimuth_deg (azimuth clockwise from north = +y) or a time and place."""
+
+    elevation_deg: float | None = Field(default=None, ge=-90.0, le=90.0)
+    azimuth_deg: float | None = None
+    datetime_utc: dt.datetime | None = None
+    latitude_deg: float | None = Field(default=None, ge=-90.0, le=90.0)
+    longitude_deg: float | None = Field(default=None, ge=-180.0, le=180.0)
+
+    @model_validator(mode="after")
+    def _one_way(self) -> "Sun":
+        angles = self.elevation_deg is not None and self.azimuth_deg is not None
+        place = self.datetime_utc is not None and self.latitude_deg is not None and self.longitude_deg is not None
+        if angles == place:
+            raise ValueError("give either elevation_deg + azimuth_deg, or datetime_utc + latitude_deg + longitude_deg")
+        return self
+
+
+class Clouds(_Model):
+    coverage: float = Field(ge=0.0, le=1.0)
+    altitude_m: float = Field(default=2000.0, gt=0.0)
+    scale_deg: float = Field(default=20.0, gt=0.0, description="typical cloud size on the sky")
+
+
+class Sky(_Model):
+    sun: Sun = Field(default_factory=lambda: Sun(elevation_deg=40.0, azimuth_deg=135.0))
+    turbidity: float = Field(default=3.0, ge=1.0, le=10.0)
+    ground_albedo: float = Field(default=0.2, ge=0.0, le=1.0)
+    clouds: Clouds | None = None
+
+
+class Atmosphere(_Model):
+    air_temperature_k: float = Field(default=288.0, gt=200.0, lt=340.0)
+    relative_humidity: float = Field(default=0.5, ge=0.0, le=1.0)
+    visibility_m: float = Field(default=20000.0, gt=10.0)
+
+
+class CameraIntrinsics(_Model):
+    width_px: int = Field(default=640, ge=16, le=4096)
+    height_px: int = Field(default=512, ge=16, le=4096)
+    hfov_deg: float = Field(default=30.0, gt=0.1, lt=170.0)
+    spp: int = Field(default=4, ge=1, le=1024, description="samples per pixel of the radiance pass")
+
+
+class ThermalCamera(CameraIntrinsics):
+    netd_k: float = Field(default=0.05, gt=0.0, le=1.0)
+    kelvin_per_count: float = Field(default=0.01, gt=0.0)
+
+
+class CameraOffset(_Model):
+    """Pose of the thermal camera relative to the RGB camera (camera frame: x right, y up, z back)."""
+
+    translation_m: Vec3 = (0.0, 0.0, 0.0)
+    yaw_deg: float = 0.0
+    pitch_deg: float = 0.0
+    roll_deg: float = 0.0
+
+
+class CameraRig(_Model):
+    position_m: Vec3 = (0.0, 0.0, 1.5)
+    look_at_m: Vec3 | None = None
+    track_target: str | None = None
+    rgb: CameraIntrinsics = Field(default_factory=CameraIntrinsics)
+    thermal: ThermalCamera = Field(default_factory=ThermalCamera)
+    thermal_offset: CameraOffset = Field(default_factory=CameraOffset)
+
+    @model_validator(mode="after")
+    def _pointing(self) -> "CameraRig":
+        if (self.look_at_m is None) == (self.track_target is None):
+            raise ValueError("give exactly one of look_at_m (fixed camera) or track_target (pan/tilt)")
+        return self
+
+
+class Scenario(_Model):
+    schema_version: Literal[1] = SCHEMA_VERSION
+    name: str = Field(min_length=1)
+    description: str = ""
+    duration_s: float = Field(gt=0.0, le=3600.0)
+    frame_rate_hz: float = Field(default=30.0, gt=0.0, le=240.0)
+    seed: int | None = Field(default=None, ge=0)
+    targets: list[Target] = Field(min_length=1)
+    sky: Sky = Field(default_factory=Sky)
+    atmosphere: Atmosphere = Field(default_factory=Atmosphere)
+    camera_rig: CameraRig
+
+    @model_validator(mode="after")
+    def _names(self) -> "Scenario":
+        names = [t.name for t in self.targets]
+        if len(set(names)) != len(names):
+            raise ValueError(f"target names must be unique, got {names}")
+        track = self.camera_rig.track_target
+        if track is not None and track not in names:
+            raise ValueError(f"camera_rig.track_target {track!r} is not a target name; targets: {names}")
+        return self
+
+    @property
+    def n_frames(self) -> int:
+        return max(1, int(round(self.duration_s * self.frame_rate_hz)))

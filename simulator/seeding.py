@@ -1,0 +1,27 @@
+"""Named random streams: every draw comes from SeedSequence([seed, stream_id, *indices])."""
+from __future__ import annotations
+
+import numpy as np
+
+STREAMS = {
+    "trajectory": 1,
+    "clouds": 2,
+    "render": 3,
+    "rotor_detune": 4,
+    "acoustics": 5,
+    "rf": 6,
+    "generation": 7,
+}
+
+
+def rng_for(seed: int, stream: str, *indices: int) -> np.random.Generator:
+    """An independent generator for (seed, stream, indices); adding a stream never shifts another."""
+    if stream not in STREAMS:
+        raise ValueError(f"unknown random stream {stream!r}; known: {sorted(STREAMS)}")
+    return np.random.default_rng(np.random.SeedSequence([int(seed), STREAMS[stream], *map(int, indices)]))
+
+
+def render_seed(seed: int, frame_index: int, pass_index: int) -> int:
+    """A 32-bit Mitsuba sampler seed per (scenario seed, frame, pass)."""
+    state = np.random.SeedSequence([int(seed), STREAMS["render"], int(frame_index), int(pass_index)])
+    return int(state.generate_state(1, dtype=np.uint32)[0])
