@@ -175,7 +175,8 @@ class Misalignment(_Cross):
 @register
 class FrameRateMismatch(_Cross):
     """The camera actually runs at ``rate_ratio`` x the nominal rate while frames are stamped at the
-    nominal rate: output frame t shows source frame floor(t * ratio + phase); labels follow."""
+    nominal rate: output frame t shows source frame floor((t + phase) * ratio), phase in [0, 1)
+    drawn (where the slow camera's frame grid starts); labels follow."""
     name = "crossmodal.frame_rate_mismatch"
     streams = ("rgb", "thermal")
     table = {"rate_ratio": (0.95, 0.9, 0.8, 0.67, 0.5)}
@@ -190,7 +191,7 @@ class FrameRateMismatch(_Cross):
         r = float(params["rate_ratio"])
         if not 0 < r <= 1:
             raise DegradationError(f"{self.name}: rate_ratio must be in (0, 1], got {r}")
-        return np.clip(np.floor(np.arange(n) * r + params["phase"] * (1 - r)).astype(np.int64), 0, n - 1)
+        return np.clip(np.floor((np.arange(n) + params["phase"]) * r).astype(np.int64), 0, n - 1)
 
     def _apply(self, x, params, meta):
         return x[self.index(x.shape[0], params)]
