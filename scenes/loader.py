@@ -29,8 +29,11 @@ def format_validation_error(exc: ValidationError, source: str) -> str:
     lines = []
     for err in exc.errors():
         loc = ".".join(str(p) for p in err["loc"]) or "<root>"
+        if err["type"] == "missing":
+            lines.append(f"{source}: {loc}: {err['msg']}")
+            continue
         got = err.get("input")
-        got_text = repr(got) if not isinstance(got, dict) or len(repr(got)) < 80 else "{...}"
+        got_text = repr(got) if len(repr(got)) < 80 else repr(got)[:77] + "..."
         lines.append(f"{source}: {loc}: {err['msg']} (got {got_text})")
     return "\n".join(lines)
 

@@ -7,8 +7,9 @@ One scene graph per camera, sharing geometry built from the same procedural mesh
 - Thermal: every part is an emitter of its at-sensor band radiance
   tau (eps L(T) + (1 - eps) L_refl) + (1 - tau) L(T_air) over an LWIR sky map (simulator.sky);
   one bounce suffices because the physics is folded into the emission (no Mitsuba thermal physics).
-- Masks: depth + shape-index AOVs at 1 spp with a box filter, mapped to target ids (0 = sky; a
-  hit is depth > 0, because Mitsuba's shape_index is 0 both for the first shape and for a miss).
+- Masks: the same scene at 1 spp with a box filter and only direct emission, where each shape emits
+  its target id and the sky emits nothing, so a pixel's value is exactly the id it sees (0 = sky).
+  (Mitsuba's shape_index AOV does not follow scene.shapes() order, so it is not used.)
 Mitsuba is imported lazily (simulator.mitsuba_setup) so nothing else depends on it.
 """
 from __future__ import annotations
@@ -24,8 +25,8 @@ from simulator.seeding import render_seed
 from simulator.sky import CloudField, ThermalSky, direction_from_elevation_azimuth, sun_elevation_azimuth_deg
 from simulator.timeline import CameraTrack, Timeline, TargetTrack
 
-ENV_WIDTH = 1024
-ENV_HEIGHT = 512
+ENV_WIDTH = 2048
+ENV_HEIGHT = 1024
 SUN_SOLID_ANGLE_SR = 6.8e-5
 RGB_MAX_DEPTH = 3
 EXPOSURE_KEY = 0.45
@@ -160,16 +161,10 @@ class SequenceRenderer:
         self.thermal_scene = self._build_scene("thermal", first)
         self.rgb_params = mi.traverse(self.rgb_scene)
         self.thermal_params = mi.traverse(self.thermal_scene)
-        self._aov = mi.load_dict({"type": "aov", "aovs": "dd:depth,id:shape_index"})
-        self._id_lut = {"rgb": self._shape_lut(self.rgb_scene), "thermal": self._shape_lut(self.thermal_scene)}
+        self._mask_integrator = mi.load_dict({"type": "path", "max_depth": 1})
         look = timeline.cameras["rgb"].forward[0]
         luminance = float(np.dot(self.sky.rgb_at(look), [0.2126, 0.7152, 0.0722]))
         self.exposure = EXPOSURE_KEY / max(luminance, 1e-6)
-
-    def _shape_lut(self, scene) -> np.ndarray:
-        by_key = {key: tid for key, tid, _ in self._shape_keys}
-        ids = [by_key[s.id()] for s in scene.shapes()]
-        return np.array(ids, dtype=np.uint16)
 
     def _sensor(self, camera: CameraTrack, spp: int) -> dict:
         mi = self.mi
@@ -218,6 +213,7 @@ class SequenceRenderer:
         geometry = {tid: _parts_by_role(track, frame) for tid, track in tracks.items()}
         for which, params in (("rgb", self.rgb_params), ("thermal", self.thermal_params)):
             camera = self.timeline.cameras[which]
+            params["sky.scale"] = 1.0
             params["sensor.to_world"] = mi.ScalarTransform4f().look_at(
                 origin=camera.origin_m[frame].tolist(), target=(camera.origin_m[frame] + camera.forward[frame]).tolist(),
                 up=camera.up[frame].tolist())
@@ -247,10 +243,15 @@ class SequenceRenderer:
         rgb = np.array(mi.render(self.rgb_scene, seed=render_seed(seed, frame, 0)), dtype=np.float32)
         th = np.array(mi.render(self.thermal_scene, seed=render_seed(seed, frame, 1)), dtype=np.float32)[..., 0]
         masks = {}
-        for idx, (which, scene) in enumerate((("rgb", self.rgb_scene), ("thermal", self.thermal_scene))):
-            aov = np.array(mi.render(scene, integrator=self._aov, spp=1, seed=render_seed(seed, frame, 2 + idx)))
-            index = np.clip(np.rint(aov[..., -1]).astype(np.int64), 0, len(self._id_lut[which]) - 1)
-            masks[which] = np.where(aov[..., -2] > 0, self._id_lut[which][index], 0).astype(np.uint16)
+        for idx, (which, scene, params) in enumerate((("rgb", self.rgb_scene, self.rgb_params),
+                                                      ("thermal", self.thermal_scene, self.thermal_params))):
+            params["sky.scale"] = 0.0
+            for key, tid, _ in self._shape_keys:
+                params[f"{key}.emitter.radiance.value"] = mi.Color3f(float(tid), float(tid), float(tid))
+            params.update()
+            ids = np.array(mi.render(scene, integrator=self._mask_integrator, spp=1,
+                                     seed=render_seed(seed, frame, 2 + idx)))[..., 0]
+            masks[which] = np.rint(ids).astype(np.uint16)
         kelvin = thermal.brightness_temperature(th).astype(np.float32)
         return FrameBuffers(rgb_linear=rgb * np.float32(self.exposure), thermal_radiance=th, thermal_kelvin=kelvin,
                             mask_rgb=masks["rgb"], mask_thermal=masks["thermal"])

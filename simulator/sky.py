@@ -56,7 +56,7 @@ def elevation_rad(directions: np.ndarray) -> np.ndarray:
 class CloudField:
     """A seeded, periodic fractal cover field on the cloud plane; coverage(dirs) in [0, 1]."""
 
-    _GRID = 256
+    _GRID = 512
 
     def __init__(self, clouds: Clouds, seed: int):
         self.clouds = clouds
@@ -66,11 +66,11 @@ class CloudField:
         radius = np.hypot(fx, fy)
         radius[0, 0] = 1.0
         spectrum = (rng.standard_normal((self._GRID, self._GRID)) + 1j * rng.standard_normal((self._GRID, self._GRID)))
-        field = np.real(np.fft.ifft2(spectrum / radius ** 1.6))
+        field = np.real(np.fft.ifft2(spectrum / radius ** 2.2))
         field = (field - field.mean()) / field.std()
         threshold = np.quantile(field, 1.0 - clouds.coverage) if clouds.coverage > 0 else np.inf
-        self._density = np.clip((field - threshold) / 0.6, 0.0, 1.0) if clouds.coverage < 1 else np.ones_like(field)
-        self._period_m = clouds.altitude_m * np.tan(np.radians(clouds.scale_deg)) * 8.0
+        self._density = np.clip((field - threshold) / 1.2, 0.0, 1.0) if clouds.coverage < 1 else np.ones_like(field)
+        self._period_m = clouds.altitude_m * np.tan(np.radians(clouds.scale_deg)) * 16.0
 
     def coverage(self, directions: np.ndarray) -> np.ndarray:
         up = directions[..., 2]

@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# One script, two jobs, each installing what it needs first (idempotent):
+#   bash run.sh demo   install, then render two preset scenarios with contact sheets into out/
+#   bash run.sh test   install (with test extras), then run the whole test suite
+# Installs: Debian libllvm19 when root with apt (Dr.Jit's fast CPU backend needs libLLVM >= 16),
+# a local virtual environment .venv with this package and its pinned dependencies.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")"
+
+have_llvm16() {
+  ls /usr/lib/*/libLLVM-1[6-9]*.so* /usr/lib/*/libLLVM-[2-9][0-9]*.so* /usr/lib/*/libLLVM.so.1[6-9]* \
+     /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* >/dev/null 2>&1
+}
+
+install_system() {
+  if have_llvm16; then return; fi
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    echo "[setup] installing libllvm19 (apt)"
+    apt-get update -qq >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null \
+      || echo "[setup] warning: could not install libllvm19; rendering will use Mitsuba's slow scalar variant"
+  else
+    echo "[setup] warning: no libLLVM >= 16 found and not root with apt; install libllvm19 (or LLVM 16+) for fast rendering"
+  fi
+}
+
+install_python() {
+  local extras="$1"
+  local stamp=".venv/.installed-$(sha256sum pyproject.toml | cut -c1-16)-${extras//,/_}"
+  if [ ! -x .venv/bin/python ]; then
+    echo "[setup] creating .venv"
+    python3 -m venv .venv
+  fi
+  if [ ! -f "$stamp" ]; then
+    echo "[setup] installing the package and dependencies into .venv (first run takes a few minutes)"
+    .venv/bin/python -m pip install -q --upgrade pip >/dev/null
+    .venv/bin/python -m pip install -q -e ".[${extras}]"
+    rm -f .venv/.installed-*
+    touch "$stamp"
+  fi
+}
+
+job="${1:-}"
+case "$job" in
+  demo)
+    install_system
+    install_python "audio"
+    shift
+    mkdir -p out
+    for scene in dusk_crossover bird_confuser; do
+      .venv/bin/evids render "$scene" --out out --preview "$@"
+    done
+    echo "open out/dusk_crossover_preview.png and out/bird_confuser_preview.png"
+    ;;
+  test)
+    install_system
+    install_python "audio,dev"
+    shift
+    set +e
+    .venv/bin/python -m pytest -q -p no:cacheprovider "$@"
+    status=$?
+    set -e
+    if [ "$status" = 5 ]; then echo "error: pytest collected no tests"; exit 1; fi
+    exit "$status"
+    ;;
+  *)
+    echo "usage: bash run.sh demo|test [extra args]" >&2
+    exit 2
+    ;;
+esac
