@@ -289,3 +289,22 @@ def reindex_frames(meta: dict, shown: np.ndarray) -> dict:
         out[key] = arr[shown]
     out["frame_index_shown"] = shown.tolist()
     return out
+
+
+def _normal_table() -> np.ndarray:
+    from scipy.special import ndtri
+
+    return ndtri((np.arange(65536, dtype=np.float64) + 0.5) / 65536.0).astype(np.float32)
+
+
+#: inverse-CDF table of the standard normal at 65536 equiprobable points (|z| <= 4.33)
+NORMAL_TABLE = _normal_table()
+
+
+def fast_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+    """Standard-normal float32 field via a 16-bit inverse-CDF table (about 4x faster than
+    ``standard_normal`` for image-sized fields; tails truncated at 4.33 sigma, 65536 levels).
+    Used for image/thermal sensor noise, where that resolution is far below one grey level."""
+    n = int(np.prod(shape))
+    idx = np.frombuffer(rng.bytes(2 * n), dtype=np.uint16)
+    return NORMAL_TABLE[idx].reshape(shape)

@@ -18,6 +18,7 @@ class _Cross(Degradation):
     """Base: the modality is chosen per instance with the ``stream`` parameter."""
     modality = "rgb"
     streams: tuple[str, ...] = MODALITIES
+    uint8_native = True  # index/warp operations work on uint8 frames directly
 
     def __init__(self, severity=None, *, temporal=None, **params):
         stream = params.pop("stream", "rgb")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from degradations.base import Degradation
+from degradations.base import Degradation, fast_normal
 from degradations.errors import DegradationError
 from degradations.registry import register
 from degradations.video import _Decoy, bird_mask, decoy_track
@@ -96,8 +96,9 @@ class NETDNoise(Degradation):
     identity = {"netd_k": 0.0}
 
     def _apply(self, x, params, meta):
-        n = self.noise_rng(params).standard_normal(self.field_shape(x.shape, params), dtype=np.float32)
-        return x + n * np.float32(params["netd_k"])
+        n = fast_normal(self.noise_rng(params), self.field_shape(x.shape, params))
+        n *= np.float32(params["netd_k"])
+        return x + n
 
 
 @register

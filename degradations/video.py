@@ -11,13 +11,15 @@ from typing import Any
 import cv2
 import numpy as np
 
-from degradations.base import Degradation, reindex_frames
+from degradations.base import NORMAL_TABLE, Degradation, fast_normal, reindex_frames
 from degradations.errors import DegradationError
 from degradations.registry import register
 
 
 def _frames(fn, clip: np.ndarray) -> np.ndarray:
     """Apply a per-frame function (cv2 op) over a clip (T, H, W, C)."""
+    if clip.shape[0] == 1:
+        return fn(clip[0])[None]
     return np.stack([fn(f) for f in clip])
 
 
@@ -51,14 +53,25 @@ def smooth_field(rng: np.random.Generator, n: int, h: int, w: int, cells: tuple[
 
 @register
 class GaussianNoise(Degradation):
-    """Additive Gaussian noise, ImageNet-C sigmas on [0, 1] images; fresh per frame by default."""
+    """Additive Gaussian noise, ImageNet-C sigmas on [0, 1] images; fresh per frame by default.
+
+    uint8 input is processed in the integer domain: y = clip(x + round(255 sigma n)), which equals
+    round(clip(x/255 + sigma n) * 255) for integer x. Normal draws use ``fast_normal``."""
     name = "video.gaussian_noise"
     modality = "rgb"
     table = {"sigma": (0.08, 0.12, 0.18, 0.26, 0.38)}
     identity = {"sigma": 0.0}
+    uint8_native = True
 
     def _apply(self, x, params, meta):
-        n = self.noise_rng(params).standard_normal(self.field_shape(x.shape, params), dtype=np.float32)
+        shape = self.field_shape(x.shape, params)
+        if x.dtype == np.uint8:  # same bytes as fast_normal, looked up in a pre-scaled integer table
+            idx = np.frombuffer(self.noise_rng(params).bytes(2 * int(np.prod(shape))), np.uint16).reshape(shape)
+            lut = np.round(NORMAL_TABLE * np.float32(255.0 * params["sigma"])).astype(np.int16)
+            y = lut[idx] + x.astype(np.int16)
+            np.clip(y, 0, 255, out=y)
+            return y.astype(np.uint8)
+        n = fast_normal(self.noise_rng(params), shape)
         n *= np.float32(params["sigma"])
         return np.clip(x + n, 0.0, 1.0)
 
@@ -138,7 +151,7 @@ class LowLight(Degradation):
     identity = {"exposure": 1.0, "read_sigma": 0.0, "gamma": 1.0}
 
     def _apply(self, x, params, meta):
-        n = self.noise_rng(params).standard_normal(self.field_shape(x.shape, params), dtype=np.float32)
+        n = fast_normal(self.noise_rng(params), self.field_shape(x.shape, params))
         y = np.clip(x * np.float32(params["exposure"]) + n * np.float32(params["read_sigma"]), 0.0, 1.0)
         return np.power(y, np.float32(params["gamma"]))
 
@@ -241,8 +254,10 @@ class JPEG(Degradation):
         u8 = np.clip(x * 255.0 + 0.5, 0, 255).astype(np.uint8) if is_float else x
 
         def enc(f):
-            ok, buf = cv2.imencode(".jpg", f[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, q])
-            return cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1]
+            ok, buf = cv2.imencode(".jpg", cv2.cvtColor(f, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, q])
+            if not ok:
+                raise DegradationError(f"{self.name}: OpenCV failed to encode a frame")
+            return cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
         y = _frames(enc, u8)
         return y.astype(np.float32) / 255.0 if is_float else y
 

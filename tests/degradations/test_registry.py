@@ -266,3 +266,13 @@ def test_static_vs_per_frame_noise():
     flat = np.full((3, 32, 40, 3), 180, np.uint8)
     dirt = degradations.apply("video.lens_dirt", flat, seed=0, severity=5)
     assert np.array_equal(dirt[0], dirt[1]) and not np.array_equal(dirt[0], flat[0])  # same spots every frame
+
+
+def test_fast_normal_statistics_and_uint8_path_matches_float_path():
+    from degradations.base import fast_normal
+    z = fast_normal(np.random.default_rng(0), (200_000,))
+    assert abs(z.mean()) < 0.01 and abs(z.std() - 1.0) < 0.01 and abs(np.mean(z**4) - 3.0) < 0.1
+    x = rgb_clip()
+    yu = degradations.apply("video.gaussian_noise", x, seed=2, sigma=0.1)
+    yf = degradations.apply("video.gaussian_noise", x.astype(np.float32) / 255, seed=2, sigma=0.1)
+    assert np.max(np.abs(yu.astype(np.float64) - yf * 255)) <= 0.51
