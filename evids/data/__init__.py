@@ -1,0 +1,1 @@
+"""Dataset loaders: generated data and public benchmark formats."""
