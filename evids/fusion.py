@@ -47,6 +47,10 @@ class FusionResult(NamedTuple):
     ``None`` for rules without a conflict term.
     ``fallback``: DS only, ``(N,)`` True where C > c_max sent the sample to its most certain modality.
     ``discount``: discounted fusion only, the trust factor applied to each modality ``(M, N)``.
+
+    Under the ``"scaled"`` construction the fused ``alpha = p K / u`` is a valid Dirichlet
+    parameter (> 0) but can fall below 1 (e.g. Yager or discounted fusion with a large fused u), so
+    it is not evidence + 1 and cannot be fed back into these rules: fuse all modalities in one call.
     """
 
     alpha: Tensor
@@ -112,32 +116,69 @@ def _result(b: Tensor, u: Tensor, construction: Construction, **diag: Tensor | N
     return FusionResult(alpha=alpha, p=p, u=u, belief=b, **diag)
 
 
-def _pairwise_conflict(b1: Tensor, b2: Tensor) -> tuple[Tensor, Tensor]:
-    """Return ``(C, agreement)`` with ``C = sum_{i != j} b1_i b2_j`` clamped to [0, 1]."""
-    agree = (b1 * b2).sum(dim=-1)
-    c = (b1.sum(dim=-1) * b2.sum(dim=-1) - agree).clamp(0.0, 1.0)
-    return c, agree
+def _opinions_cm(stacked: Tensor, mask: Tensor | None, construction: Construction) -> tuple[Tensor, Tensor]:
+    """Opinions in class-major layout, ``b`` (M, K, *batch) and ``u`` (M, *batch): the same
+    arithmetic as :func:`evids.heads.belief_masses`, laid out so that every per-class operation of
+    the fold runs on contiguous sample vectors (reductions over small K are slow on the last dim)."""
+    _check_construction(construction)
+    x = stacked.movedim(-1, 1).contiguous()
+    if x.data_ptr() == stacked.data_ptr():
+        x = x.clone()
+    k = x.shape[1]
+    s = x.sum(dim=1)
+    u = k / s
+    if construction == "canonical":
+        b = x.sub_(1.0).div_(s.unsqueeze(1))
+    else:
+        b = x.div_(s.unsqueeze(1)).mul_((1.0 - u).unsqueeze(1))
+    if mask is not None:
+        b = torch.where(mask.unsqueeze(1), b, torch.zeros((), dtype=b.dtype))
+        u = torch.where(mask, u, torch.ones((), dtype=u.dtype))
+    return b, u
+
+
+def _result_cm(b: Tensor, u: Tensor, construction: Construction) -> tuple[Tensor, Tensor, Tensor]:
+    """Class-major fused opinion -> ``(alpha, p, belief)`` as contiguous (..., K) tensors
+    (the inverse of :func:`evids.heads.belief_masses`, see :func:`evids.heads.opinion_to_alpha`)."""
+    k = b.shape[0]
+    tiny = torch.finfo(b.dtype).tiny
+    s = k / u.clamp(min=tiny, max=1.0)
+    if construction == "canonical":
+        alpha = (b * s).add_(1.0)
+        p = alpha / alpha.sum(dim=0)
+    else:
+        mass = b.sum(dim=0)
+        safe = mass > tiny
+        p = torch.where(safe, b / torch.where(safe, mass, torch.ones((), dtype=b.dtype)), torch.full((), 1.0 / k, dtype=b.dtype))
+        alpha = p * s
+    return tuple(t.movedim(0, -1).contiguous() for t in (alpha, p, b))  # type: ignore[return-value]
 
 
 def _ds_step(b1: Tensor, u1: Tensor, b2: Tensor, u2: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-    """Dempster's rule on two opinions.
+    """Dempster's rule on two class-major opinions (b: (K, *batch), u: (*batch)).
 
-    ``1 - C`` is evaluated as ``u1 + u2 - u1 u2 + sum_k b1_k b2_k`` (algebraically equal because
-    ``sum b + u = 1``): a sum of non-negative terms, so it never cancels to 0 or goes negative as
-    C -> 1, and it is exactly symmetric in the two arguments.
+    ``C = sum_{i != j} b1_i b2_j = sum(b1) sum(b2) - sum_k b1_k b2_k``. ``1 - C`` is evaluated as
+    ``u1 + u2 - u1 u2 + sum_k b1_k b2_k`` (algebraically equal because ``sum b + u = 1``): a sum of
+    non-negative terms, so it never cancels to 0 or goes negative as C -> 1, and it is exactly
+    symmetric in the two arguments.
     """
-    c, agree = _pairwise_conflict(b1, b2)
-    tiny = torch.finfo(b1.dtype).tiny
-    one_minus_c = (u1 + u2 - u1 * u2 + agree).clamp(min=tiny)
-    b = (b1 * b2 + (b1 * u2.unsqueeze(-1) + b2 * u1.unsqueeze(-1))) / one_minus_c.unsqueeze(-1)
-    u = (u1 * u2) / one_minus_c
+    prod = b1 * b2
+    agree = prod.sum(dim=0)
+    c = b1.sum(dim=0).mul_(b2.sum(dim=0)).sub_(agree).clamp_(0.0, 1.0)
+    uu = u1 * u2
+    one_minus_c = (u1 + u2).sub_(uu).add_(agree).clamp_(min=torch.finfo(b1.dtype).tiny)
+    cross = (b1 * u2).add_(b2 * u1)
+    b = prod.add_(cross).div_(one_minus_c)
+    u = uu.div_(one_minus_c)
     return b, u, c
 
 
 def _yager_step(b1: Tensor, u1: Tensor, b2: Tensor, u2: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-    """Yager's rule: the conjunctive masses without normalisation, conflict mass added to u."""
-    c, _ = _pairwise_conflict(b1, b2)
-    b = b1 * b2 + (b1 * u2.unsqueeze(-1) + b2 * u1.unsqueeze(-1))
+    """Yager's rule on class-major opinions: the conjunctive masses without normalisation, the
+    conflict mass added to u."""
+    prod = b1 * b2
+    c = (b1.sum(dim=0) * b2.sum(dim=0) - prod.sum(dim=0)).clamp_(0.0, 1.0)
+    b = prod + (b1 * u2 + b2 * u1)
     u = u1 * u2 + c
     return b, u, c
 
@@ -148,8 +189,9 @@ def _fold(
     u: Tensor,
     mask: Tensor | None,
 ) -> tuple[Tensor, Tensor, Tensor]:
-    """Left fold of a binary rule over modalities; a missing modality leaves the running opinion
-    unchanged bit for bit, and a sample's first available modality is taken as is."""
+    """Left fold of a binary rule over modalities (class-major ``b`` (M, K, *batch)); a missing
+    modality leaves the running opinion unchanged bit for bit, and a sample's first available
+    modality is taken as is."""
     fb, fu = b[0], u[0]
     seen = mask[0] if mask is not None else None
     conflicts = []
@@ -158,10 +200,10 @@ def _fold(
         if mask is not None:
             avail = mask[m]
             take_new = avail & ~seen
-            nb = torch.where(take_new.unsqueeze(-1), b[m], nb)
+            nb = torch.where(take_new, b[m], nb)
             nu = torch.where(take_new, u[m], nu)
             keep = ~avail
-            nb = torch.where(keep.unsqueeze(-1), fb, nb)
+            nb = torch.where(keep, fb, nb)
             nu = torch.where(keep, fu, nu)
             c = torch.where(avail & seen, c, torch.zeros((), dtype=c.dtype))
             seen = seen | avail
@@ -186,24 +228,34 @@ def dempster_shafer(
     stacked, mask = stack_modalities(alphas, available)
     if c_max is not None and not (isinstance(c_max, (int, float)) and 0.0 <= c_max <= 1.0):
         raise ValueError(f"c_max must be None or a number in [0, 1], got {c_max!r}")
-    b, u = _opinions(stacked, mask, construction)
+    b, u = _opinions_cm(stacked, mask, construction)
     fb, fu, conflict = _fold(_ds_step, b, u, mask)
-    alpha, p = opinion_to_alpha(fb, fu, construction)
+    alpha, p, belief = _result_cm(fb, fu, construction)
     fallback = None
     if c_max is not None:
-        fallback = conflict.max(dim=0).values > c_max
-        u_rank = u if mask is None else torch.where(mask, u, torch.full((), float("inf"), dtype=u.dtype))
-        best = u_rank.argmin(dim=0)
-        idx = best.unsqueeze(0).unsqueeze(-1).expand(1, *stacked.shape[1:])
-        best_alpha = stacked.gather(0, idx).squeeze(0)
-        best_b = b.gather(0, idx).squeeze(0)
-        best_u = u.gather(0, best.unsqueeze(0)).squeeze(0)
-        sel = fallback.unsqueeze(-1)
-        alpha = torch.where(sel, best_alpha, alpha)
-        p = torch.where(sel, best_alpha / best_alpha.sum(dim=-1, keepdim=True), p)
-        fb = torch.where(sel, best_b, fb)
-        fu = torch.where(fallback, best_u, fu)
-    return FusionResult(alpha=alpha, p=p, u=fu, belief=fb, conflict=conflict, fallback=fallback)
+        fallback = conflict.amax(dim=0) > c_max
+        flat_fb = fallback.reshape(-1)
+        rows = flat_fb.nonzero().squeeze(1)
+        if rows.numel():
+            k = stacked.shape[-1]
+            flat_alpha = stacked.reshape(stacked.shape[0], -1, k)[:, rows]
+            flat_u = u.reshape(u.shape[0], -1)[:, rows]
+            if mask is not None:
+                flat_u_rank = torch.where(mask.reshape(mask.shape[0], -1)[:, rows], flat_u, torch.full((), float("inf"), dtype=u.dtype))
+            else:
+                flat_u_rank = flat_u
+            best_alpha, rank = flat_alpha[0], flat_u_rank[0]
+            for m in range(1, flat_alpha.shape[0]):
+                better = flat_u_rank[m] < rank
+                rank = torch.where(better, flat_u_rank[m], rank)
+                best_alpha = torch.where(better.unsqueeze(-1), flat_alpha[m], best_alpha)
+            best_b, best_u = belief_masses(best_alpha, construction)
+            alpha.view(-1, k)[rows] = best_alpha
+            p.view(-1, k)[rows] = best_alpha / best_alpha.sum(dim=-1, keepdim=True)
+            belief.view(-1, k)[rows] = best_b
+            fu = fu.clone()
+            fu.view(-1)[rows] = best_u
+    return FusionResult(alpha=alpha, p=p, u=fu, belief=belief, conflict=conflict, fallback=fallback)
 
 
 def yager(alphas: Alphas, construction: Construction = "canonical", available: Mask = None) -> FusionResult:
@@ -212,9 +264,10 @@ def yager(alphas: Alphas, construction: Construction = "canonical", available: M
     confident, contradicting modalities yield a vacuous-leaning result. Commutative, not associative.
     """
     stacked, mask = stack_modalities(alphas, available)
-    b, u = _opinions(stacked, mask, construction)
+    b, u = _opinions_cm(stacked, mask, construction)
     fb, fu, conflict = _fold(_yager_step, b, u, mask)
-    return _result(fb, fu, construction, conflict=conflict)
+    alpha, p, belief = _result_cm(fb, fu, construction)
+    return FusionResult(alpha=alpha, p=p, u=fu, belief=belief, conflict=conflict)
 
 
 def _cumulative(b: Tensor, u: Tensor) -> tuple[Tensor, Tensor]:
