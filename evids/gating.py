@@ -159,6 +159,7 @@ class HysteresisGate:
         self.params = params
         self.stats = GateStats(num_modalities)
         self._state: dict[Hashable, _KeyState] = {}
+        self._last: tuple[tuple[bool, ...], tuple[bool, ...], bool] = ((), (), False)
 
     def _key(self, key: Hashable) -> _KeyState:
         st = self._state.get(key)
