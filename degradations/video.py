@@ -295,7 +295,7 @@ class BlockCompression(Degradation):
         b = img.reshape(H // 8, 8, W // 8, 8, C)
         coef = np.einsum("ij,ajbkc,lk->aiblc", _D8, b, _D8, optimize=True)
         qc = np.round(coef / q[None, :, None, :, None]) * q[None, :, None, :, None]
-        return np.einsum("ji,ajblc,kl->aibkc", _D8, qc, _D8, optimize=True).reshape(H, W, C)
+        return np.einsum("ji,ajblc,lk->aibkc", _D8, qc, _D8, optimize=True).reshape(H, W, C)
 
     def _apply(self, x, params, meta):
         T, H, W, _ = x.shape

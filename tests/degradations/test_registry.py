@@ -276,3 +276,10 @@ def test_fast_normal_statistics_and_uint8_path_matches_float_path():
     yu = degradations.apply("video.gaussian_noise", x, seed=2, sigma=0.1)
     yf = degradations.apply("video.gaussian_noise", x.astype(np.float32) / 255, seed=2, sigma=0.1)
     assert np.max(np.abs(yu.astype(np.float64) - yf * 255)) <= 0.51
+
+
+def test_block_dct_roundtrip_is_exact_without_quantisation():
+    from degradations.video import BlockCompression
+    x = np.random.default_rng(0).random((16, 24, 3)).astype(np.float32)
+    rec = BlockCompression(qscale=1.0)._code(x, np.full((8, 8), 1e-7, np.float32))
+    assert np.max(np.abs(rec - x)) < 1e-4
