@@ -132,7 +132,7 @@ def _attitude(kind: str, vel: np.ndarray, acc: np.ndarray) -> tuple[np.ndarray, 
         left0 = _normalise(np.cross(z_world, forward))
         up0 = np.cross(forward, left0)
         horiz_speed = np.linalg.norm(vel[:, :2], axis=-1)
-        yaw_rate = np.cross(vel[:, :2], acc[:, :2]) / np.maximum(horiz_speed ** 2, 1e-6)
+        yaw_rate = (vel[:, 0] * acc[:, 1] - vel[:, 1] * acc[:, 0]) / np.maximum(horiz_speed ** 2, 1e-6)
         bank = np.arctan2(horiz_speed * yaw_rate, GRAVITY_MPS2)
         bank = np.clip(bank, -np.radians(60), np.radians(60))[:, None]
         up = np.cos(bank) * up0 + np.sin(bank) * left0
