@@ -29,6 +29,7 @@ SPEED_OF_LIGHT_MPS = 299_792_458.0
 OFDM_FFT = 256                     # 78.125 kHz subcarrier spacing at 20 MS/s
 OFDM_CP = 64
 SPECTROGRAM_PX = 112
+RAMP_S = 10e-6                     # burst power ramp-up/down time of the hopping transmitters
 DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
 _EMITTER_CONTROL, _EMITTER_VIDEO, _EMITTER_WIFI, _EMITTER_BT, _EMITTER_NOISE = 0, 1, 2, 3, 4
 BT_CHANNELS_HZ = tuple(2402e6 + 1e6 * k for k in range(79))
@@ -109,7 +110,7 @@ def _unit_phasor(phase: np.ndarray) -> np.ndarray:
 def fhss_bursts(rng: np.random.Generator, capture_start_s: np.ndarray, n_samples: int, sample_rate_hz: float,
                 channels_hz: np.ndarray, slot_s: float, burst_s: float, symbol_rate_hz: float,
                 occupancy: float = 1.0, clip_duration_s: float = 10.0) -> tuple[np.ndarray, np.ndarray]:
-    """Unit-power frequency-hopping CPFSK bursts (h = 0.5, linear frequency transitions).
+    """Unit-power frequency-hopping CPFSK bursts (h = 0.5, linear frequency transitions, 10 us ramps).
 
     One burst of ``burst_s`` at the start of every ``slot_s`` slot, on a channel drawn per slot
     (a slot is used with probability ``occupancy``). Returns the (S, N) complex64 signal and the
@@ -122,7 +123,11 @@ def fhss_bursts(rng: np.random.Generator, capture_start_s: np.ndarray, n_samples
     slot = np.minimum((t / slot_s).astype(np.int64), n_slots - 1)
     channel = np.asarray(channels_hz, dtype=np.float64)[hop[slot]]
     in_band = np.abs(channel) < 0.5 * sample_rate_hz - symbol_rate_hz
-    gate = ((t - slot * slot_s) < burst_s) & used[slot] & in_band
+    in_slot = t - slot * slot_s
+    gate = (in_slot < burst_s) & used[slot] & in_band
+    # raised-cosine power ramp at each burst edge (as transmitters do) limits spectral splatter
+    ramp = np.clip(np.minimum(in_slot, burst_s - in_slot) / RAMP_S, 0.0, 1.0)
+    envelope = np.sin(0.5 * np.pi * ramp).astype(np.float32) ** 2
     sps = sample_rate_hz / symbol_rate_hz
     n_sym = int(np.ceil(n_samples / sps)) + 2
     bits = rng.integers(0, 2, size=(capture_start_s.size, n_sym)).astype(np.float32) * 2 - 1
@@ -136,7 +141,7 @@ def fhss_bursts(rng: np.random.Generator, capture_start_s: np.ndarray, n_samples
     phase = 2 * np.pi * np.cumsum(inst_hz, axis=1) / sample_rate_hz
     phase += 2 * np.pi * rng.random((capture_start_s.size, 1))
     sig = np.zeros(gate.shape, dtype=np.complex64)
-    sig[gate] = _unit_phasor(phase[gate])               # only burst samples need a phasor
+    sig[gate] = _unit_phasor(phase[gate]) * envelope[gate]      # only burst samples need a phasor
     return sig, gate
 
 
