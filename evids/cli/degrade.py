@@ -1,0 +1,39 @@
+"""`evids degrade DATASET --spec SPEC --out DIR`: a stored degraded copy of native sequences."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from evids.errors import UserInputError
+
+
+def degrade(
+    dataset: Path = typer.Argument(..., help="A native sequence folder, or a folder of them."),
+    spec: Path = typer.Option(..., "--spec", help="Degradation spec (YAML or JSON; see docs/DEGRADATIONS.md)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output folder for the degraded copies."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of every degradation draw."),
+) -> None:
+    """Degrade RGB and thermal frames of native sequences by a spec; writes each sequence with a
+    degradation_record.json (per-frame severity and compromised flags per modality).
+
+    Example: evids degrade out/dusk_crossover --spec examples/ir_blind.yaml --out out/degraded
+    """
+    from degradations.errors import DegradationError
+    from degradations.spec import load_spec
+    from evids.degrade_dataset import degrade_sequence, find_sequences
+
+    try:
+        parsed = load_spec(spec)
+    except (DegradationError, ValueError) as exc:
+        raise UserInputError(str(exc)) from None
+    for sequence in find_sequences(dataset):
+        try:
+            path = degrade_sequence(sequence, parsed, out, seed)
+        except DegradationError as exc:
+            raise UserInputError(f"{sequence}: {exc}") from None
+        typer.echo(f"degraded: {path}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("degrade")(degrade)
