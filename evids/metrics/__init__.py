@@ -1,5 +1,5 @@
 """Evaluation metrics: classification, calibration, uncertainty ranking (UAUC), clip-clustered
-bootstrap, detection (IoU matching, AP50, detection ECE/UAUC), Anti-UAV state accuracy, MOTA/IDF1."""
+bootstrap, detection (IoU matching, AP50, detection ECE/UAUC), Anti-UAV state accuracy, MOTA/IDF1, HOTA."""
 from __future__ import annotations
 
 from evids.metrics.bootstrap import BootstrapResult, clustered_bootstrap, clustered_resample, paired_bootstrap
@@ -14,6 +14,7 @@ from evids.metrics.detection import (
     mot_metrics,
     state_accuracy,
 )
+from evids.metrics.tracking import hota
 
 __all__ = [
     "BootstrapResult",
@@ -30,6 +31,7 @@ __all__ = [
     "detection_uauc",
     "ece",
     "fit_temperature",
+    "hota",
     "macro_f1",
     "match_detections",
     "mot_metrics",

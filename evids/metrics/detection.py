@@ -217,8 +217,8 @@ def mot_metrics(
     """MOTA, MOTP, IDF1, ID switches, precision and recall via ``motmetrics`` (optional dependency).
 
     ``gt`` and ``hyp`` list, per frame, ``(ids, boxes)``. A pair is a match candidate when
-    IoU >= ``iou_threshold`` (distance ``1 - IoU``, as in the MOTChallenge protocol). HOTA is not
-    provided by motmetrics.
+    IoU >= ``iou_threshold`` (distance ``1 - IoU``, as in the MOTChallenge protocol). For HOTA
+    (not provided by motmetrics) see ``evids.metrics.hota``.
     """
     try:
         import motmetrics as mm
