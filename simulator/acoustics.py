@@ -10,6 +10,7 @@ another one. See docs/AUDIO_RF.md for the models and their parameters.
 """
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -517,8 +518,23 @@ def write_wav(path: str | Path, pressure_pa: np.ndarray, sample_rate_hz: float =
         raise ValueError(f"full_scale_pa must be > 0, got {full_scale_pa}")
     path = Path(path)
     data = (np.asarray(pressure_pa, dtype=np.float64) / full_scale_pa).astype(np.float32)
-    soundfile.write(str(path), data, int(sample_rate_hz), subtype="FLOAT", format="WAV")
+    buffer = io.BytesIO()
+    soundfile.write(buffer, data, int(sample_rate_hz), subtype="FLOAT", format="WAV")
+    path.write_bytes(_zero_peak_timestamp(buffer.getvalue()))
     return path
+
+
+def _zero_peak_timestamp(wav: bytes) -> bytes:
+    """libsndfile stamps float WAVs' PEAK chunk with the wall-clock time; zero it for byte-identical files."""
+    out = bytearray(wav)
+    pos = 12                                              # after 'RIFF' <size> 'WAVE'
+    while pos + 8 <= len(out):
+        chunk_id, size = bytes(out[pos:pos + 4]), int.from_bytes(out[pos + 4:pos + 8], "little")
+        if chunk_id == b"PEAK" and size >= 8:
+            out[pos + 12:pos + 16] = b"\0\0\0\0"          # version (4 bytes), then timestamp (4 bytes)
+            break
+        pos += 8 + size + (size & 1)
+    return bytes(out)
 
 
 def band_level_db(x_pa: np.ndarray, sample_rate_hz: float, low_hz: float, high_hz: float,

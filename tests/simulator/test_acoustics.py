@@ -120,3 +120,6 @@ def test_wav_round_trip(tmp_path):
     path = ac.write_wav(tmp_path / "a.wav", x, FS, full_scale_pa=0.1)
     y, rate = soundfile.read(str(path), dtype="float32")
     assert rate == FS and np.allclose(y, x / 0.1, atol=1e-7)
+    raw = path.read_bytes()
+    peak = raw.find(b"PEAK")
+    assert peak > 0 and raw[peak + 12:peak + 16] == b"\0\0\0\0"      # no wall-clock stamp: byte-identical files
