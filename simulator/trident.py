@@ -350,7 +350,7 @@ def write_clip(root: Path, group: str, number: int, clip: TridentClip, config: T
 
 
 def _default_frames(scenario: Scenario, seed: int, n_frames: int, width_px: int, height_px: int) -> np.ndarray:
-    from simulator.render import render_rgb_video
+    from simulator.sequence import render_rgb_video
 
     return render_rgb_video(scenario, seed, n_frames, width_px, height_px)
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import degradations
-from conftest import SR, audio
+from tests.degradations.conftest import SR, audio
 
 
 def realised_snr_db(x, y):

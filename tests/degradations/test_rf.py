@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import degradations
-from conftest import iq, spec_db
+from tests.degradations.conftest import iq, spec_db
 
 
 @pytest.mark.parametrize("snr_db", [-10.0, 0.0, 10.0, 25.0])

@@ -9,7 +9,7 @@ import torch
 
 from degradations.errors import SpecError
 from degradations.spec import apply_spec, load_spec, parse_spec
-from conftest import target_mask
+from tests.degradations.conftest import target_mask
 
 FPS = 10.0
 T = 30  # 3 s

@@ -6,7 +6,7 @@ import pytest
 
 import degradations
 from degradations.thermal import NETD_K, contrast_k, ring_masks
-from conftest import target_mask, thermal_clip
+from tests.degradations.conftest import target_mask, thermal_clip
 
 
 def _contrast(x):
