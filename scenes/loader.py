@@ -2,26 +2,20 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from evids.errors import UserInputError
 from scenes.schema import Scenario
 
 LIBRARY_DIR = Path(__file__).with_name("library")
+ModelT = TypeVar("ModelT", bound=BaseModel)
 
 
 def preset_names() -> list[str]:
     return sorted(p.stem for p in LIBRARY_DIR.glob("*.yaml"))
-
-
-def preset_path(name: str) -> Path:
-    path = LIBRARY_DIR / f"{name}.yaml"
-    if not path.is_file():
-        raise UserInputError(f"unknown scene preset {name!r}; valid presets: {', '.join(preset_names())}")
-    return path
 
 
 def format_validation_error(exc: ValidationError, source: str) -> str:
@@ -38,28 +32,43 @@ def format_validation_error(exc: ValidationError, source: str) -> str:
     return "\n".join(lines)
 
 
-def scenario_from_dict(data: Any, source: str = "<scenario>") -> Scenario:
+def validate_mapping(model: type[ModelT], data: Any, source: str) -> ModelT:
+    """Validate a parsed YAML mapping against a pydantic model; errors name field path and value."""
     if not isinstance(data, dict):
         raise UserInputError(f"{source}: expected a mapping at the top level, got {type(data).__name__}")
     try:
-        return Scenario.model_validate(data)
+        return model.model_validate(data)
     except ValidationError as exc:
         raise UserInputError(format_validation_error(exc, source)) from None
 
 
-def load_scenario(path_or_name: str | Path) -> Scenario:
-    """Load a scenario from a YAML path, or from a preset name (no path separator, no suffix)."""
+def load_validated(path_or_name: str | Path | dict, model: type[ModelT], library_dir: Path, kind: str) -> ModelT:
+    """A mapping, a YAML path, or a preset name (no suffix, no separator) from ``library_dir``."""
+    if isinstance(path_or_name, dict):
+        return validate_mapping(model, path_or_name, f"<{kind}>")
     text_arg = str(path_or_name)
     path = Path(text_arg)
+    names = sorted(p.stem for p in Path(library_dir).glob("*.yaml"))
     if not path.suffix and "/" not in text_arg and not path.exists():
-        path = preset_path(text_arg)
+        path = Path(library_dir) / f"{text_arg}.yaml"
+        if not path.is_file():
+            raise UserInputError(f"unknown {kind} {text_arg!r}; valid presets: {', '.join(names)}")
     if not path.is_file():
-        raise UserInputError(f"scene file {text_arg!r} does not exist; presets: {', '.join(preset_names())}")
+        raise UserInputError(f"{kind} file {text_arg!r} does not exist; presets: {', '.join(names)}")
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
         raise UserInputError(f"{path}: not valid YAML: {exc}") from None
-    return scenario_from_dict(data, source=str(path))
+    return validate_mapping(model, data, str(path))
+
+
+def scenario_from_dict(data: Any, source: str = "<scenario>") -> Scenario:
+    return validate_mapping(Scenario, data, source)
+
+
+def load_scenario(path_or_name: str | Path) -> Scenario:
+    """Load a scenario from a YAML path, or from a preset name (no path separator, no suffix)."""
+    return load_validated(path_or_name, Scenario, LIBRARY_DIR, "scene preset")
 
 
 def scenario_to_yaml(scenario: Scenario) -> str:

@@ -24,7 +24,7 @@ from typing import Any, Callable, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from scenes.schema import Scenario
 from simulator.acoustics import (AUDIO_SAMPLE_RATE_HZ, DRONE_KINDS, Ambience, band_level_db, synthesize_audio,
@@ -133,35 +133,11 @@ class TridentConfig(_Model):
 
 def load_trident_config(config_or_name: str | Path | dict | TridentConfig) -> TridentConfig:
     """A config object, a mapping, a YAML path, or a preset name in scenes/generation/."""
-    from evids.errors import UserInputError
-    from scenes.loader import format_validation_error
+    from scenes.loader import load_validated
 
     if isinstance(config_or_name, TridentConfig):
         return config_or_name
-    source = "<trident config>"
-    if isinstance(config_or_name, dict):
-        data: Any = config_or_name
-    else:
-        text = str(config_or_name)
-        path = Path(text)
-        if not path.suffix and "/" not in text and not path.exists():
-            path = GENERATION_DIR / f"{text}.yaml"
-            if not path.is_file():
-                names = sorted(p.stem for p in GENERATION_DIR.glob("*.yaml"))
-                raise UserInputError(f"unknown generation preset {text!r}; valid presets: {', '.join(names)}")
-        if not path.is_file():
-            raise UserInputError(f"generation config {text!r} does not exist")
-        source = str(path)
-        try:
-            data = yaml.safe_load(path.read_text())
-        except yaml.YAMLError as exc:
-            raise UserInputError(f"{path}: not valid YAML: {exc}") from None
-    if not isinstance(data, dict):
-        raise UserInputError(f"{source}: expected a mapping at the top level, got {type(data).__name__}")
-    try:
-        return TridentConfig.model_validate(data)
-    except ValidationError as exc:
-        raise UserInputError(format_validation_error(exc, source)) from None
+    return load_validated(config_or_name, TridentConfig, GENERATION_DIR, "trident generation preset")
 
 
 def resolve_scenario(spec: ClipSpec, source: str = "<clip>") -> Scenario:

@@ -8,6 +8,7 @@ import pytest
 import yaml
 
 from scenes import load_scenario
+from scenes.loader import LIBRARY_DIR
 from simulator.labels import local_contrast_k, tight_box
 from simulator.native import load_mask, load_thermal_kelvin, verify_hashes
 from simulator.sequence import render_sequence
@@ -21,7 +22,7 @@ def _evids(*args, cwd=None):
 
 
 def test_invalid_field_exits_2_names_the_field_and_writes_nothing(tmp_path):
-    data = yaml.safe_load(open(load_scenario.__globals__["preset_path"]("clear_day_quad")))
+    data = yaml.safe_load((LIBRARY_DIR / "clear_day_quad.yaml").read_text())
     data["atmosphere"]["relative_humidity"] = 1.7
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump(data))
