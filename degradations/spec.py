@@ -16,7 +16,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from degradations.base import DEFAULT_LEVEL, MODALITIES, PER_FRAME_KEYS, TEMPORAL_MODES, make_rng
+from degradations.base import DEFAULT_LEVEL, MODALITIES, PER_FRAME_KEYS, make_rng
 from degradations.errors import DegradationError, SpecError
 from degradations.registry import REGISTRY, _to_numpy, get
 from degradations.schedule import PROGRAMS, Event, Schedule, StepSchedule, conflict_program

@@ -23,7 +23,6 @@ from pathlib import Path
 from typing import Any, Callable, Literal
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from scenes.schema import Scenario
