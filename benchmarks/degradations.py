@@ -60,6 +60,15 @@ def rate(fn: Callable[[], object], budget_s: float) -> float:
     return best
 
 
+def paired_rates(ours_fn, peer_fn, budget: float, rounds: int = 3) -> tuple[float, float]:
+    """Best-of rates of ours and the peer, measured alternately so machine load hits both alike."""
+    best_ours = best_peer = 0.0
+    for _ in range(rounds):
+        best_ours = max(best_ours, rate(ours_fn, budget))
+        best_peer = max(best_peer, rate(peer_fn, budget))
+    return best_ours, best_peer
+
+
 def stream_of(name: str) -> str:
     from degradations.spec import default_stream
     return default_stream(name)
@@ -92,16 +101,19 @@ def main() -> None:
             "video.jpeg": A.ImageCompression(quality_range=(15, 15), p=1.0),
         }
         for name, tf in peers.items():
-            peer = rate(lambda: tf(image=rgb)["image"], budget)
-            ratios[f"{name} vs albumentations.{type(tf).__name__}"] = ours[name] / peer
+            mine, peer = paired_rates(lambda: degradations.apply(name, rgb, seed=1, severity=3),
+                                      lambda: tf(image=rgb)["image"], budget)
+            ratios[f"{name} vs albumentations.{type(tf).__name__}"] = mine / peer
             print(f"peer albumentations.{type(tf).__name__:26s} {peer:10.1f}")
     except ImportError:
         print("albumentations not installed: RGB peer ratios skipped (pip install .[bench])")
     try:
         import audiomentations as AM
         tf = AM.AddGaussianSNR(min_snr_db=10.0, max_snr_db=10.0, p=1.0)
-        peer = rate(lambda: tf(samples=au, sample_rate=SR), budget)
-        ratios["audio.white_noise vs audiomentations.AddGaussianSNR"] = ours["audio.white_noise"] / peer
+        mine, peer = paired_rates(lambda: degradations.apply("audio.white_noise", au, seed=1, severity=3,
+                                                             meta=data["audio"][1]),
+                                  lambda: tf(samples=au, sample_rate=SR), budget)
+        ratios["audio.white_noise vs audiomentations.AddGaussianSNR"] = mine / peer
         print(f"peer audiomentations.AddGaussianSNR     {peer:10.1f}")
     except ImportError:
         print("audiomentations not installed: audio peer ratio skipped (pip install .[bench])")

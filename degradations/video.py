@@ -256,7 +256,7 @@ class JPEG(Degradation):
             ok, buf = cv2.imencode(".jpg", cv2.cvtColor(f, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, q])
             if not ok:
                 raise DegradationError(f"{self.name}: OpenCV failed to encode a frame")
-            return cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+            return cv2.imdecode(buf, cv2.IMREAD_COLOR_RGB)
         y = _frames(enc, u8)
         return y.astype(np.float32) / 255.0 if is_float else y
 
