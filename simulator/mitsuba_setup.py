@@ -26,7 +26,9 @@ _SEARCH_GLOBS = (
 
 
 def _major_version(path: str) -> int | None:
-    match = re.search(r"libLLVM[-.]?(\d+)", os.path.basename(path)) or re.search(r"llvm-(\d+)", path)
+    name = os.path.basename(path)
+    match = (re.search(r"libLLVM-(\d+)", name) or re.search(r"libLLVM\.so\.(\d+)", name)
+             or re.search(r"llvm-(\d+)", path))
     return int(match.group(1)) if match else None
 
 
