@@ -57,3 +57,21 @@ def read_antiuav_labels(path: Path) -> tuple[np.ndarray, list[list[float] | None
     if len(rects) != len(exist):
         raise ValueError(f"{path}: {len(exist)} exist flags but {len(rects)} gt_rect entries")
     return exist, rects
+
+
+def export_antiuav_rgbt(sequence_dir: Path, out_dir: Path, name: str | None = None) -> Path:
+    """Anti-UAV (RGB-T, the 300-sequence release's layout): `<out>/<name>/visible/000001.jpg`,
+    `infrared/000001.jpg`, `visible.json`, `infrared.json` (same fields as IR_label.json)."""
+    sequence_dir, out_dir = Path(sequence_dir), Path(out_dir)
+    meta, labels = load_meta(sequence_dir), load_labels(sequence_dir)
+    name = name or meta["scenario_name"]
+    target_id = primary_target_id(labels)
+    final = out_dir / name
+    with atomic_folder(final) as tmp:
+        for i in range(meta["n_frames"]):
+            image, _ = agc_8bit(load_thermal_kelvin(sequence_dir, i))
+            write_jpeg(tmp / "infrared" / frame_name(i, "jpg"), image)
+            write_jpeg(tmp / "visible" / frame_name(i, "jpg"), load_rgb(sequence_dir, i))
+        write_json(tmp / "infrared.json", _label_file(labels, "thermal", target_id))
+        write_json(tmp / "visible.json", _label_file(labels, "rgb", target_id))
+    return final
