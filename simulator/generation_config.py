@@ -155,6 +155,7 @@ class GenerationConfig(_Model):
 def load_generation_config(config_or_name: str | Path | dict | GenerationConfig) -> GenerationConfig:
     """A config object, a mapping, a YAML path or a preset in scenes/generation/; a scene preset
     name (scenes/library/) gives that scenario with its default randomisation."""
+    from evids.errors import UserInputError
     from scenes.loader import LIBRARY_DIR, load_validated
 
     if isinstance(config_or_name, GenerationConfig):
@@ -164,6 +165,18 @@ def load_generation_config(config_or_name: str | Path | dict | GenerationConfig)
         plain = not Path(text).suffix and "/" not in text and not Path(text).exists()
         if plain and not (GENERATION_DIR / f"{text}.yaml").is_file() and (LIBRARY_DIR / f"{text}.yaml").is_file():
             return GenerationConfig(name=text, mixture=[MixtureEntry(scenario=text)], randomise=default_randomisation())
+    if isinstance(config_or_name, (str, Path)):
+        text = str(config_or_name)
+        path = GENERATION_DIR / f"{text}.yaml" if not Path(text).suffix and "/" not in text else Path(text)
+        if path.is_file():
+            import yaml
+
+            try:
+                data = yaml.safe_load(path.read_text())
+            except yaml.YAMLError:
+                data = None
+            if isinstance(data, dict) and "clips" in data and "mixture" not in data:
+                raise UserInputError(f"{text!r} is a TRIDENT clip config: use `evids generate {text} --format trident`")
     return load_validated(config_or_name, GenerationConfig, GENERATION_DIR, "generation config")
 
 

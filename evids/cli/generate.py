@@ -1,7 +1,7 @@
-"""`evids generate CONFIG --out DIR --format trident`: tri-modal TRIDENT-layout datasets.
+"""`evids generate`, `evids export`, `evids verify`, `evids fixture`: datasets at scale.
 
-Multi-sequence native/Anti-UAV/MOT/COCO generation is the dataset-generation issue's work; until it
-lands, other formats are refused with a pointer to `evids render` (one sequence at a time).
+Thin wrappers over simulator.generate (native datasets, exporters, verify), simulator.trident
+(`--format trident`) and simulator.fixtures.
 """
 from __future__ import annotations
 
@@ -13,31 +13,127 @@ import typer
 from evids.errors import UserInputError
 
 
+def _formats(text: str) -> tuple[str, ...]:
+    from simulator.generate import EXPORT_FORMATS
+
+    formats = tuple(dict.fromkeys(f.strip() for f in text.split(",") if f.strip()))
+    valid = ("native",) + EXPORT_FORMATS
+    bad = [f for f in formats if f not in valid]
+    if bad or not formats:
+        raise UserInputError(f"--format: unknown format(s) {bad or [text]}; valid: {', '.join(valid)} "
+                             "(comma-separated), or trident alone")
+    return formats
+
+
 def generate(
-    config: str = typer.Argument(..., help="A TRIDENT generation preset name (e.g. trident_mini) or YAML path."),
-    out: Path = typer.Option(..., "--out", "-o", help="Output folder (must be empty or absent)."),
+    config: str = typer.Argument(..., help="A generation YAML, a generation preset (scenes/generation/, e.g. "
+                                 "mixed_small) or a scene preset (that scene with default randomisation)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Dataset folder (new, or an unfinished/identical run to resume)."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of every random draw."),
-    fmt: str = typer.Option("trident", "--format", help="Dataset layout; currently: trident."),
-    clips: Optional[int] = typer.Option(None, "--clips", min=1, help="Generate only the first N clips."),
+    sequences: Optional[int] = typer.Option(None, "--sequences", min=1, help="Number of sequences (default: the config's)."),
+    frames: Optional[int] = typer.Option(None, "--frames", min=1, help="Frames per sequence (default: the config's)."),
+    workers: int = typer.Option(1, "--workers", "-w", min=1, help="Parallel worker processes (or Ray CPUs)."),
+    executor: str = typer.Option("local", "--executor", help="local (process pool) or ray."),
+    ray_address: Optional[str] = typer.Option(None, "--ray-address", help="Ray cluster address (default: start a local Ray)."),
+    fmt: str = typer.Option("native", "--format", help="native plus any of antiuav, antiuav_rgbt, mot, coco "
+                            "(comma-separated); or trident (TRIDENT clip datasets)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace a different dataset already in --out."),
+    clips: Optional[int] = typer.Option(None, "--clips", min=1, help="trident only: the first N clips."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
 ) -> None:
-    """Generate a dataset of drone and background clips (RGB video, audio, RF) in the TRIDENT layout.
+    """Generate a randomised, split, reproducible dataset (resumable: re-run the same command).
 
-    Example: evids generate trident_mini --out out/trident --format trident
+    Examples: evids generate mixed_small --out out/mixed --seed 0 --sequences 50 --workers 2 --format native,mot,coco;
+    evids generate trident_mini --out out/trident --format trident
     """
-    if fmt != "trident":
-        raise UserInputError(f"--format {fmt!r} is not available in `generate` yet; valid: trident. "
-                             "For single sequences in native/antiuav layout use `evids render`.")
-    from simulator.trident import generate_trident
+    if fmt.strip() == "trident":
+        from simulator.trident import generate_trident
+
+        try:
+            path = generate_trident(config, out, seed, n_clips=clips, progress=not quiet)
+        except ValueError as exc:
+            if isinstance(exc, UserInputError):
+                raise
+            raise UserInputError(str(exc)) from None
+        typer.echo(f"trident: {path}")
+        return
+    if clips is not None:
+        raise UserInputError("--clips applies to --format trident only; use --sequences")
+    from simulator.generate import GenerationFailed, generate_dataset
 
     try:
-        path = generate_trident(config, out, seed, n_clips=clips, progress=not quiet)
-    except ValueError as exc:
-        if isinstance(exc, UserInputError):
-            raise
-        raise UserInputError(str(exc)) from None
-    typer.echo(f"trident: {path}")
+        result = generate_dataset(config, out, seed, sequences=sequences, frames=frames, workers=workers,
+                                  executor=executor, ray_address=ray_address, formats=_formats(fmt),
+                                  overwrite=overwrite, progress=not quiet)
+    except GenerationFailed as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(1) from None
+    typer.echo(f"native: {result.out_dir} ({len(result.rendered)} rendered, {len(result.skipped)} already complete)")
+    for kind, path in result.exports.items():
+        typer.echo(f"{kind}: {path}")
+
+
+def export(
+    dataset: Path = typer.Argument(..., help="A native dataset folder (made by `evids generate`)."),
+    fmt: str = typer.Option(..., "--format", help="antiuav, antiuav_rgbt, mot or coco (comma-separated for several)."),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default DATASET/<format>); one "
+                                       "format: written here; several: OUT/<format>."),
+    annotate_every: int = typer.Option(1, "--annotate-every", min=1, help="mot: gt rows on frames 1, 1+k, ... only "
+                                       "(MM-UAV's test split uses 20)."),
+    distractors: Optional[bool] = typer.Option(None, "--distractors/--no-distractors", help="Include birds/aircraft "
+                                               "(default: no for mot, yes for coco as flagged categories)."),
+    quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+) -> None:
+    """Export a native dataset to benchmark layouts (Anti-UAV, MM-UAV, COCO-video).
+
+    Example: evids export out/mixed --format mot --out out/mixed_mmuav --annotate-every 20
+    """
+    from simulator.generate import export_dataset
+
+    formats = [f for f in _formats(fmt) if f != "native"]
+    if not formats:
+        raise UserInputError("--format: give at least one of antiuav, antiuav_rgbt, mot, coco")
+    for f in formats:
+        target = (out if len(formats) == 1 else out / f) if out is not None else dataset / f
+        path = export_dataset(dataset, f, target, annotate_every=annotate_every, distractors=distractors,
+                              progress=not quiet)
+        typer.echo(f"{f}: {path}")
+
+
+def verify(dataset: Path = typer.Argument(..., help="A native dataset folder.")) -> None:
+    """Re-hash every sequence; list missing and corrupt ones (exit 1 if any). Re-running the same
+    `evids generate` command regenerates exactly those."""
+    from simulator.generate import verify_dataset
+
+    report = verify_dataset(dataset, progress=True)
+    for name in report.missing:
+        typer.echo(f"missing: {name}")
+    for name, files in sorted(report.corrupt.items()):
+        typer.echo(f"corrupt: {name} ({', '.join(files[:5])}{', ...' if len(files) > 5 else ''})")
+    if report.incomplete:
+        typer.echo("incomplete: the generation run has not finished (manifest has no hashes yet)")
+    if not report.ok:
+        raise typer.Exit(1)
+    typer.echo(f"ok: {report.checked} sequences intact")
+
+
+def fixture(
+    name: str = typer.Argument(..., help="native, antiuav, antiuav_rgbt, mmuav, coco or trident."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output folder (new or empty)."),
+    preset: str = typer.Option("clear_day_quad", "--preset", help="Scene preset to render."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed."),
+) -> None:
+    """Write a tiny regression dataset (the pytest plugin's fixtures; bytes stable per package version).
+
+    Example: evids fixture mmuav --out tests/data/mmuav
+    """
+    from simulator.fixtures import build_fixture
+
+    typer.echo(f"{name}: {build_fixture(name, out, preset=preset, seed=seed)}")
 
 
 def register(app: typer.Typer) -> None:
     app.command("generate")(generate)
+    app.command("export")(export)
+    app.command("verify")(verify)
+    app.command("fixture")(fixture)
