@@ -1,0 +1,175 @@
+"""Dataset preparation for experiments: generate (or take) a TRIDENT-layout folder, load it through
+:class:`evids.data.trident.TridentDataset` (the same path for generated, exported and real data),
+keep each clip's waveform (for audio noise before the MFCC) and I/Q (for RF noise before the STFT)
+when present, and split clips (stratified by label, seeded) into train/val/test."""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from evids.errors import UserInputError
+from evids.experiments.config import DatasetConfig, SplitConfig
+
+SPLITS = ("train", "val", "test")
+
+
+@dataclass
+class ClipArrays:
+    """One clip, all segments in time order."""
+
+    clip_id: str
+    label: int                       # 0 Drone, 1 Background
+    mfcc: np.ndarray                 # (S, 1, 40, 40) float32 (clean, as the loader computes it)
+    video: np.ndarray                # (S, 7, 112, 112, 3) uint8
+    rf: np.ndarray                   # (S, 112, 112) float32 in [0, 1]
+    audio: np.ndarray                # (N,) float32 waveform (mono)
+    sample_rate_hz: float
+    iq: np.ndarray | None = None     # (S, n) complex64 or None
+    observability: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n_segments(self) -> int:
+        return int(self.mfcc.shape[0])
+
+
+@dataclass
+class Prepared:
+    """The loaded clips, the split and the RF image scaling (for spectrogram-domain noise)."""
+
+    root: Path
+    clips: list[ClipArrays]
+    split: dict[str, list[int]]
+    rf_range_db: float
+    rf_config: dict | None
+    generated: bool
+
+
+def _frames_fn(render_px: int):
+    def render(scenario, seed, n_frames, width_px, height_px):
+        import cv2
+
+        from simulator.sequence import render_rgb_video
+
+        small = render_rgb_video(scenario, seed, n_frames, render_px, render_px)
+        if render_px == width_px and render_px == height_px:
+            return small
+        return np.stack([cv2.resize(f, (width_px, height_px), interpolation=cv2.INTER_LINEAR) for f in small])
+
+    return render
+
+
+def ensure_dataset(cfg: DatasetConfig, run_dir: Path, progress: bool = True) -> tuple[Path, bool]:
+    """The dataset folder: ``cfg.path``, or ``run_dir/data`` generated once (reused when complete)."""
+    if cfg.path is not None:
+        root = Path(cfg.path)
+        if not root.is_dir():
+            raise UserInputError(f"dataset.path: {str(root)!r} is not a folder")
+        return root, False
+    root = run_dir / "data"
+    if (root / "manifest.json").is_file():
+        return root, True
+    from simulator.trident import generate_trident, load_trident_config
+
+    gen = load_trident_config(cfg.generate)
+    if cfg.clip_duration_s is not None:
+        gen = gen.model_copy(update={"clip_duration_s": cfg.clip_duration_s})
+        gen = type(gen).model_validate(gen.model_dump())
+    frames = _frames_fn(cfg.render_px) if cfg.render_px is not None else None
+    generate_trident(gen, root, cfg.seed, n_clips=cfg.n_clips, progress=progress, render_frames=frames)
+    return root, True
+
+
+def load_clips(root: Path, progress: bool = True) -> list[ClipArrays]:
+    """Every clip under a TRIDENT-layout root, through the shared loader."""
+    import soundfile
+
+    from evids.data.trident import TridentDataset
+
+    root = Path(root)
+    try:
+        ds = TridentDataset(root)
+    except ValueError as exc:
+        raise UserInputError(str(exc)) from None
+    if not ds.clips:
+        raise UserInputError(f"dataset {str(root)!r} holds no complete clips (audio + video + rf)")
+    items = ds.clips
+    if progress:
+        from rich.progress import track
+
+        items = track(items, description="loading clips", total=len(ds.clips))
+    out = []
+    for clip in items:
+        segs = list(ds.iter_clip(clip))
+        if not segs:
+            continue
+        audio, rate = soundfile.read(str(clip.audio), dtype="float32", always_2d=True)
+        iq = None
+        iq_path = root / "rf_iq" / clip.label / clip.scenario / f"{clip.number}.npy"
+        if iq_path.is_file():
+            iq = np.load(iq_path)[: len(segs)]
+        obs = {}
+        if segs[0].observability is not None:
+            obs = {m: np.array([s.observability[m] for s in segs]) for m in ("audio", "video", "rf")}
+        out.append(ClipArrays(
+            clip_id=clip.clip_id, label=int(segs[0].label),
+            mfcc=np.stack([s.audio_mfcc for s in segs]).astype(np.float32),
+            video=np.stack([s.video for s in segs]).astype(np.uint8),
+            rf=np.stack([s.rf if s.rf.ndim == 2 else s.rf.mean(-1) for s in segs]).astype(np.float32),
+            audio=audio.mean(axis=1), sample_rate_hz=float(rate), iq=iq, observability=obs))
+    return out
+
+
+def split_clips(clips: list[ClipArrays], cfg: SplitConfig) -> dict[str, list[int]]:
+    """Stratified clip-level split; every split gets >= 1 clip of each label that has >= 3 clips."""
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x5B117]))
+    out: dict[str, list[int]] = {s: [] for s in SPLITS}
+    for label in sorted({c.label for c in clips}):
+        idx = np.array([i for i, c in enumerate(clips) if c.label == label])
+        idx = idx[rng.permutation(idx.size)]
+        n = idx.size
+        n_test = int(round(cfg.test_fraction * n))
+        n_val = int(round(cfg.val_fraction * n))
+        if n >= 3:
+            n_test, n_val = max(1, n_test), max(1, n_val)
+            n_test = min(n_test, n - 2)
+            n_val = min(n_val, n - n_test - 1)
+        out["test"] += idx[:n_test].tolist()
+        out["val"] += idx[n_test:n_test + n_val].tolist()
+        out["train"] += idx[n_test + n_val:].tolist()
+    for s in SPLITS:
+        out[s].sort()
+        if not out[s]:
+            raise UserInputError(f"split: the {s} split is empty with {len(clips)} clips; use more clips")
+    return out
+
+
+def prepare(cfg_dataset: DatasetConfig, cfg_split: SplitConfig, run_dir: Path, progress: bool = True) -> Prepared:
+    """Generate/locate, load and split the dataset."""
+    root, generated = ensure_dataset(cfg_dataset, run_dir, progress)
+    clips = load_clips(root, progress)
+    rf_range, rf_cfg = 60.0, None
+    manifest = root / "manifest.json"
+    if manifest.is_file():
+        try:
+            rf_cfg = json.loads(manifest.read_text()).get("config", {}).get("rf")
+            if rf_cfg and "spectrogram_range_db" in rf_cfg:
+                rf_range = float(rf_cfg["spectrogram_range_db"])
+        except (json.JSONDecodeError, AttributeError):
+            rf_cfg = None
+    return Prepared(root, clips, split_clips(clips, cfg_split), rf_range, rf_cfg, generated)
+
+
+def stack(clips: list[ClipArrays], idx: list[int], key: str) -> np.ndarray:
+    """Concatenate one array over the given clips' segments."""
+    return np.concatenate([getattr(clips[i], key) for i in idx])
+
+
+def labels_of(clips: list[ClipArrays], idx: list[int]) -> np.ndarray:
+    return np.concatenate([np.full(clips[i].n_segments, clips[i].label, np.int64) for i in idx])
+
+
+def clip_ids_of(clips: list[ClipArrays], idx: list[int]) -> np.ndarray:
+    return np.concatenate([np.full(clips[i].n_segments, clips[i].clip_id, dtype=object) for i in idx])

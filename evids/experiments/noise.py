@@ -1,0 +1,112 @@
+"""Test-time degradation of loaded clips: audio noise on the waveform (MFCC recomputed), video
+noise per 7-frame segment, RF noise on the spectrogram image (via dB) or on the I/Q before the STFT,
+and conflict programs through :func:`degradations.spec.apply_spec`. Every draw is seeded from
+``SeedSequence([noise_seed, clip_index, stream])``."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+import degradations
+from evids.experiments.config import NoiseEntry
+from evids.experiments.data import ClipArrays
+
+STREAM_CODE = {"audio": 1, "video": 2, "rf_spec": 3, "rf_iq": 4, "program": 5}
+SEGMENT_S = 0.25
+FPS = 28
+
+
+def item_seed(noise_seed: int, clip_index: int, stream: str, k: int = 0) -> int:
+    """An independent integer seed per (noise seed, clip, stream, entry)."""
+    ss = np.random.SeedSequence([int(noise_seed), int(clip_index), STREAM_CODE[stream], int(k)])
+    return int(ss.generate_state(1, dtype=np.uint32)[0])
+
+
+def _apply(entry: NoiseEntry, x: np.ndarray, seed: int) -> np.ndarray:
+    if entry.severity is not None and entry.severity == 0.0 and not entry.params:
+        return x
+    kwargs = dict(entry.params)
+    if entry.severity is not None:
+        kwargs["severity"] = entry.severity
+    return degradations.apply(entry.name, x, seed=seed, **kwargs)
+
+
+def image_to_db(img: np.ndarray, range_db: float) -> np.ndarray:
+    """(S, 112, 112) image in [0, 1] (row 0 = highest frequency) -> (S, F, T) dB, row 0 = lowest."""
+    return (img[:, ::-1, :].astype(np.float64) * range_db).astype(np.float32)
+
+
+def db_to_image(db: np.ndarray, range_db: float) -> np.ndarray:
+    return np.clip(np.asarray(db, np.float64)[:, ::-1, :] / range_db, 0.0, 1.0).astype(np.float32)
+
+
+@dataclass
+class Degraded:
+    """Model inputs of one clip after degradation."""
+
+    mfcc: np.ndarray
+    video: np.ndarray
+    rf: np.ndarray
+
+
+def degrade_clip(clip: ClipArrays, clip_index: int, noise_seed: int, *, audio: list[NoiseEntry] = (),
+                 video: list[NoiseEntry] = (), rf_spec: list[NoiseEntry] = (), rf_iq: list[NoiseEntry] = (),
+                 rf_range_db: float = 60.0, rf_config: dict | None = None) -> Degraded:
+    """The clip's (mfcc, video, rf) with the listed degradations; untouched streams are the clean arrays."""
+    from simulator.trident import mfcc_segments
+
+    mfcc, vid, rf = clip.mfcc, clip.video, clip.rf
+    if audio:
+        wav = clip.audio
+        for k, e in enumerate(audio):
+            wav = _apply(e, wav, item_seed(noise_seed, clip_index, "audio", k))
+        mfcc = mfcc_segments(wav, clip.sample_rate_hz, clip.n_segments)
+    if video:
+        for k, e in enumerate(video):
+            vid = _apply(e, vid, item_seed(noise_seed, clip_index, "video", k))
+    if rf_iq:
+        if clip.iq is None or rf_config is None:
+            raise ValueError(f"clip {clip.clip_id} has no I/Q capture (rf_iq/ folder); I/Q-level RF noise is impossible")
+        from simulator.rf import RFConfig, spectrogram_dbm, spectrogram_image
+
+        iq = clip.iq
+        for k, e in enumerate(rf_iq):
+            iq = _apply(e, iq, item_seed(noise_seed, clip_index, "rf_iq", k))
+        conf = RFConfig.model_validate(rf_config)
+        rf = spectrogram_image(spectrogram_dbm(iq, conf.sample_rate_hz), conf).astype(np.float32) / 255.0
+    if rf_spec:
+        db = image_to_db(rf, rf_range_db)
+        for k, e in enumerate(rf_spec):
+            db = _apply(e, db, item_seed(noise_seed, clip_index, "rf_spec", k))
+        rf = db_to_image(db, rf_range_db)
+    return Degraded(mfcc, vid, rf)
+
+
+def conflict_clip(clip: ClipArrays, clip_index: int, noise_seed: int, program: str, onset_s: float,
+                  duration_s: float, severity: float, rf_range_db: float = 60.0) -> tuple[Degraded, dict]:
+    """Apply one conflict program to a clip; returns the inputs and per-segment flags
+    ``{"compromised": {audio, video, rf}: (S,) bool, "conflict": (S,) bool}``."""
+    from degradations.spec import apply_spec, parse_spec
+    from simulator.trident import mfcc_segments
+
+    s = clip.n_segments
+    rf_db = image_to_db(clip.rf, rf_range_db)                       # (S, F, T)
+    streams = {"rgb": clip.video.reshape(-1, *clip.video.shape[2:]), "audio": clip.audio,
+               "rf_spec": np.concatenate(list(rf_db), axis=1)}      # (F, S*T)
+    meta = {"rgb_fps": float(FPS), "audio_sample_rate_hz": clip.sample_rate_hz,
+            "rf_spec_frame_rate_hz": clip.rf.shape[2] / SEGMENT_S}
+    spec = parse_spec({"programs": [{"name": program, "onset_s": onset_s, "duration_s": duration_s,
+                                     "severity": severity}]})
+    t_s = np.arange(s) * SEGMENT_S
+    out, record = apply_spec(spec, streams, meta, item_seed(noise_seed, clip_index, "program"), t_s)
+    video = np.asarray(out["rgb"]).reshape(clip.video.shape)
+    mfcc = mfcc_segments(np.asarray(out["audio"]), clip.sample_rate_hz, s)
+    spec_out = np.asarray(out["rf_spec"])
+    rf = db_to_image(np.stack(np.split(spec_out, s, axis=1)), rf_range_db)
+    comp = record["compromised"]
+    flags = {"compromised": {"audio": np.asarray(comp.get("audio", [False] * s), bool),
+                             "video": np.asarray(comp.get("rgb", [False] * s), bool),
+                             "rf": np.asarray(comp.get("rf_spec", [False] * s), bool)},
+             "conflict": np.asarray(record["conflict"], bool)}
+    return Degraded(mfcc, video, rf), flags
