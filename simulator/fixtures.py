@@ -93,7 +93,10 @@ def build_fixture(name: str, out_dir: str | Path, *, preset: str = "clear_day_qu
         return fixture_target(out, name)
     from simulator.generate import generate_dataset
 
-    config = {"name": f"fixture_{preset}", "mixture": [{"scenario": preset}], "sequences": 1,
+    # the preset's sky, air and other targets; its primary drone 120 m away, tracked, ~12 px wide
+    randomise = {"range_m": [120, 120], "trajectory_kinds": ["flyby"], "speed_mps": [6, 6], "target_px": [12, 12],
+                 "elevation_deg": [8, 8]}
+    config = {"name": f"fixture_{preset}", "mixture": [{"scenario": preset}], "randomise": randomise, "sequences": 1,
               "frames": FIXTURE_SPEC["frames"], "image_size": FIXTURE_SPEC["image_size"], "spp": FIXTURE_SPEC["spp"],
               "splits": {"train": 1.0, "val": 0.0, "test": 0.0}}
     formats = ("native",) + ((_EXPORT_OF[name],) if name in _EXPORT_OF else ())
