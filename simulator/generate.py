@@ -16,6 +16,7 @@ import hashlib
 import json
 import os
 import shutil
+import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -156,12 +157,23 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
 
             dr.set_thread_count(int(threads))
         scenario = Scenario.model_validate(task["scenario"])
+        cpu0 = time.process_time()
         written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False)
-        return {"name": task["name"], "hash": sequence_hash(written["native"])}
+        return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
+                "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid()}
     except Exception as exc:  # reported per sequence by the driver; other sequences continue
         last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
         where = f" at {Path(last.filename).name}:{last.lineno}" if last else ""
         return {"name": task["name"], "error": f"{type(exc).__name__}: {exc}{where}"}
+
+
+def _peak_rss_mb() -> float:
+    """Peak resident memory of this process in MB (Linux reports KB, macOS bytes)."""
+    import resource
+    import sys
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
 
 
 def _threads_per_worker(workers: int) -> int:
@@ -169,8 +181,8 @@ def _threads_per_worker(workers: int) -> int:
 
 
 def _run_local(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int,
-               on_done: Callable[[dict[str, Any]], None]) -> None:
-    if workers <= 1:
+               on_done: Callable[[dict[str, Any]], None], force_pool: bool = False) -> None:
+    if workers <= 1 and not force_pool:
         for task in tasks:
             on_done(render_task(task, str(sequences_dir)))
         return
@@ -222,8 +234,12 @@ def _run_ray(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int, add
 
 
 def run_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, *, workers: int = 1, executor: str = "local",
-              ray_address: str | None = None, progress: bool = True, label: str = "generate") -> dict[str, dict[str, Any]]:
-    """Run render tasks on the chosen executor with a driver-side progress bar; results by name."""
+              ray_address: str | None = None, progress: bool = True, label: str = "generate",
+              force_pool: bool = False) -> dict[str, dict[str, Any]]:
+    """Run render tasks on the chosen executor with a driver-side progress bar; results by name.
+
+    Local with one worker renders in-process (Dr.Jit uses every core); ``force_pool`` uses a
+    one-process pool with 1 Dr.Jit thread per worker instead (for scaling benchmarks)."""
     results: dict[str, dict[str, Any]] = {}
     bar = task_id = None
     if progress and tasks:
@@ -242,7 +258,7 @@ def run_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, *, workers: int 
 
     try:
         if executor == "local":
-            _run_local(tasks, sequences_dir, workers, on_done)
+            _run_local(tasks, sequences_dir, workers, on_done, force_pool)
         elif executor == "ray":
             _run_ray(tasks, sequences_dir, workers, ray_address, on_done)
         else:

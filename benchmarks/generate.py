@@ -1,0 +1,83 @@
+"""Dataset generation throughput: sequences per hour with 1 and 2 worker processes, the scaling
+ratio, and peak memory per worker (targets: ratio >= 1.8 on 2 cores, < 2 GB per worker).
+
+Fixed config: scenes/generation/mixed_small.yaml, 8 sequences x 10 frames at 160x128, 2 spp,
+seed 0. Each configuration runs in a fresh subprocess so its children's peak RSS is its own;
+both use a process pool with one Dr.Jit thread per worker (process-level scaling). For reference
+it also times `--workers 1` as users get it (in-process, Dr.Jit on every core).
+
+    .venv/bin/python benchmarks/generate.py [--sequences 8] [--frames 10]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+CONFIG = "mixed_small"
+
+
+def _one(workers: int, pool: bool, sequences: int, frames: int, out: Path) -> dict:
+    from simulator.generate import plan_dataset, run_tasks
+    from simulator.generation_config import load_generation_config
+    from scenes.loader import validate_mapping
+    from simulator.generation_config import GenerationConfig
+
+    base = load_generation_config(CONFIG)
+    config = validate_mapping(GenerationConfig, {**base.model_dump(mode="json"), "sequences": sequences,
+                                                 "frames": frames, "image_size": [160, 128], "spp": 2}, "benchmark")
+    tasks = plan_dataset(config, 0)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    results = run_tasks(tasks, out, workers=workers, progress=False, force_pool=pool)
+    seconds = time.perf_counter() - t0
+    errors = [r["error"] for r in results.values() if "error" in r]
+    if errors:
+        raise SystemExit(f"benchmark sequences failed: {errors}")
+    peak = max(r["peak_rss_mb"] for r in results.values())
+    return {"workers": workers, "pool": pool, "seconds": seconds, "sequences": sequences,
+            "per_hour": sequences / seconds * 3600, "peak_worker_mb": peak,
+            "load_avg_1min": os.getloadavg()[0], "pids": len({r["pid"] for r in results.values()})}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--sequences", type=int, default=8)
+    parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--one", nargs=2, type=int, metavar=("WORKERS", "POOL"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.one:
+        with tempfile.TemporaryDirectory() as tmp:
+            print(json.dumps(_one(args.one[0], bool(args.one[1]), args.sequences, args.frames, Path(tmp) / "seqs")))
+        return
+    print(f"load average before: {os.getloadavg()[0]:.2f} (other jobs on the machine distort the ratio)")
+    print(f"config {CONFIG}: {args.sequences} sequences x {args.frames} frames, 160x128 RGB + thermal, 2 spp; "
+          f"{os.cpu_count()} CPUs")
+    runs = {}
+    for key, (workers, pool) in {"inproc1": (1, 0), "pool1": (1, 1), "pool2": (2, 1)}.items():
+        proc = subprocess.run([sys.executable, __file__, "--one", str(workers), str(pool), "--sequences",
+                               str(args.sequences), "--frames", str(args.frames)], capture_output=True, text=True)
+        if proc.returncode:
+            raise SystemExit(proc.stderr)
+        runs[key] = json.loads(proc.stdout.strip().splitlines()[-1])
+        r = runs[key]
+        label = {"inproc1": "1 worker, in-process (all Dr.Jit threads)", "pool1": "1 worker process (1 thread)",
+                 "pool2": "2 worker processes (1 thread each)"}[key]
+        print(f"{label:44s} {r['seconds']:7.1f} s  {r['per_hour']:8.0f} sequences/h  peak RSS per worker "
+              f"{r['peak_worker_mb']:6.0f} MB  (load avg after: {r['load_avg_1min']:.2f})")
+    ratio = runs["pool2"]["per_hour"] / runs["pool1"]["per_hour"]
+    vs_default = runs["pool2"]["per_hour"] / runs["inproc1"]["per_hour"]
+    print(f"scaling ratio 2 workers / 1 worker: {ratio:.2f} (target >= 1.8)")
+    print(f"2 workers / default --workers 1 (in-process): {vs_default:.2f}")
+    worst = max(r["peak_worker_mb"] for r in runs.values())
+    print(f"peak memory per worker: {worst:.0f} MB (target < 2048 MB)")
+
+
+if __name__ == "__main__":
+    main()
