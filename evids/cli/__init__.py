@@ -23,12 +23,14 @@ app = typer.Typer(
 
 def _register_all() -> None:
     from evids.cli import degrade as degrade_cli
+    from evids.cli import experiments as experiments_cli
     from evids.cli import generate as generate_cli
     from evids.cli import render as render_cli
 
     render_cli.register(app)
     degrade_cli.register(app)
     generate_cli.register(app)
+    experiments_cli.register(app)
 
 
 def main(argv: list[str] | None = None) -> None:

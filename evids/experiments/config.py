@@ -110,7 +110,7 @@ class GateConfig(_Model):
     tau_low: list[float] = Field(default=[0.05, 0.1, 0.2, 0.3, 0.5])
     n: list[int] = Field(default=[1, 3, 5, 10])
     max_val_accuracy_drop: float = Field(default=0.01, ge=0.0, le=1.0)
-    timing_repeats: int = Field(default=1, ge=1, le=20)
+    timing_repeats: int = Field(default=2, ge=1, le=20)
 
 
 class SweepConfig(_Model):
@@ -190,12 +190,12 @@ def load_experiment_config(source: str | Path | dict | ExperimentConfig) -> Expe
 
 
 _DEMO_CLIPS: list[dict[str, Any]] = [
-    {"scenario": "clear_day_quad", "count": 4, "ambience": {"wind_db": 42, "birdsong_db": 38}},
-    {"scenario": "out_of_view", "count": 3, "ambience": {"wind_db": 40, "traffic_db": 45}},
-    {"scenario": "fixed_wing_pass", "count": 2, "ambience": {"wind_db": 40}},
-    {"scenario": "low_elevation_haze", "group": "autonomous_far_hexa", "count": 2, "rf_silent": True,
+    {"scenario": "clear_day_quad", "count": 5, "ambience": {"wind_db": 42, "birdsong_db": 38}},
+    {"scenario": "out_of_view", "count": 4, "ambience": {"wind_db": 40, "traffic_db": 45}},
+    {"scenario": "fixed_wing_pass", "count": 3, "ambience": {"wind_db": 40}},
+    {"scenario": "low_elevation_haze", "group": "autonomous_far_hexa", "count": 4, "rf_silent": True,
      "ambience": {"wind_db": 48, "gust_depth": 0.9}},
-    {"group": "birds", "count": 6, "ambience": {"wind_db": 40, "birdsong_db": 45}, "scenario": {
+    {"group": "birds", "count": 8, "ambience": {"wind_db": 40, "birdsong_db": 45}, "scenario": {
         "name": "birds_near", "duration_s": 10.0,
         "targets": [
             {"name": "crow", "kind": "bird", "size_m": 0.5, "wingbeat_hz": 4.0,
@@ -203,7 +203,7 @@ _DEMO_CLIPS: list[dict[str, Any]] = [
             {"name": "gull", "kind": "bird", "size_m": 0.7, "wingbeat_hz": 3.0,
              "trajectory": {"kind": "orbit", "center_m": [5, 80, 25], "radius_m": 12, "speed_mps": 7}}],
         "camera_rig": {"position_m": [0, 0, 1.5], "look_at_m": [0, 70, 20], "rgb": {"hfov_deg": 40}}}},
-    {"group": "airliner_rain", "count": 5, "ambience": {"wind_db": 38, "rain_db": 50, "traffic_db": 42}, "scenario": {
+    {"group": "airliner_rain", "count": 8, "ambience": {"wind_db": 38, "rain_db": 50, "traffic_db": 42}, "scenario": {
         "name": "distant_airliner", "duration_s": 10.0,
         "targets": [{"name": "jet", "kind": "airliner", "size_m": 40.0,
                      "trajectory": {"kind": "flyby", "start_m": [-3000, 6000, 2500], "velocity_mps": [120, 0, 0]}}],
@@ -212,7 +212,7 @@ _DEMO_CLIPS: list[dict[str, Any]] = [
 
 DEMO_CONFIG: dict[str, Any] = {
     "name": "demo",
-    "dataset": {"generate": {"name": "demo_trident", "description": "evids demo: 11 drone + 11 background clips",
+    "dataset": {"generate": {"name": "demo_trident", "description": "evids demo: 16 drone + 16 background clips of 4 s",
                              "clip_duration_s": 4.0, "save_iq": True, "clips": _DEMO_CLIPS},
                 "seed": 7},
     "split": {"seed": 42, "val_fraction": 0.25, "test_fraction": 0.35},
@@ -226,6 +226,8 @@ QUICK_CONFIG.update({
     "sweep": {"severities": [0.0, 3.0, 5.0], "n_seeds": 1},
     "bootstrap": {"n_resamples": 300},
 })
-QUICK_CONFIG["dataset"] = {**DEMO_CONFIG["dataset"], "clip_duration_s": 1.5, "render_px": 56,
-                           "generate": {**DEMO_CONFIG["dataset"]["generate"], "clips": [
-                               {**c, "count": 2} for c in _DEMO_CLIPS]}}
+_QUICK_COUNTS = (2, 1, 1, 1, 3, 2)            # 5 drone + 5 background clips
+QUICK_CONFIG["dataset"] = {**DEMO_CONFIG["dataset"], "clip_duration_s": 1.0, "render_px": 56,
+                           "generate": {**DEMO_CONFIG["dataset"]["generate"], "name": "demo_quick_trident",
+                                        "description": "evids demo --quick: 5 drone + 5 background clips of 1 s",
+                                        "clips": [{**c, "count": k} for c, k in zip(_DEMO_CLIPS, _QUICK_COUNTS)]}}

@@ -92,7 +92,7 @@ def _train_fusion(module: torch.nn.Module, forward, y: np.ndarray, epochs: int, 
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
-        losses.append(float(loss))
+        losses.append(float(loss.detach()))
     return losses
 
 

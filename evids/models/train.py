@@ -117,7 +117,7 @@ def train_model(model: UnimodalModel, x_train: np.ndarray, y_train: np.ndarray, 
         res.train_loss.append(total / len(x_train))
         vl = _val_loss(model, x_val, y_val, cfg)
         res.val_loss.append(vl)
-        if vl < res.best_val_loss - 1e-6:
+        if vl < res.best_val_loss:
             res.best_val_loss, res.best_epoch, since_best = vl, epoch, 0
             best_state = copy.deepcopy(model.state_dict())
         else:

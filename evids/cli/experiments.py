@@ -1,0 +1,95 @@
+"""`evids train|evaluate|sweep|report|demo`: the experiment harness (thin wrappers over
+:mod:`evids.experiments` and :mod:`evids.report`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from evids.errors import UserInputError
+
+_STUDIES = ("degradation", "conflict", "gate")
+
+
+def train(
+    config: Path = typer.Option(..., "--config", "-c", help="Experiment config YAML (see examples/experiment.yaml)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Run folder (created; a generated dataset is cached in it)."),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
+) -> None:
+    """Prepare the dataset (generate it into OUT/data, or read a TRIDENT-layout folder) and train the
+    six unimodal models (audio/video/RF x sigmoid/evidential) and the Late Fusion and GMU heads.
+
+    Example: evids train --config examples/experiment.yaml --out runs/exp1
+    """
+    from evids.experiments import load_experiment_config
+    from evids.experiments.runner import stage_train
+
+    cfg = load_experiment_config(config)
+    stage_train(cfg, out, progress)
+    typer.echo(f"trained: {out / 'models.pt'}")
+
+
+def evaluate(
+    run: Path = typer.Argument(..., help="A run folder written by `evids train`."),
+    progress: bool = typer.Option(True, "--progress/--no-progress"),
+) -> None:
+    """Run every ablation condition under every noise seed, with clip-clustered bootstrap comparisons
+    (writes evaluate.json, conditions.csv, bootstrap.csv, predictions.npz, figures/examples.png)."""
+    from evids.experiments.runner import open_run, stage_evaluate, stage_examples
+
+    ctx = open_run(run, progress)
+    stage_evaluate(ctx)
+    stage_examples(ctx)
+    typer.echo(f"evaluated: {run / 'conditions.csv'}")
+
+
+def sweep(
+    run: Path = typer.Argument(..., help="A run folder written by `evids train`."),
+    only: str = typer.Option(",".join(_STUDIES), "--only", help="Comma-separated subset of: degradation,conflict,gate."),
+    progress: bool = typer.Option(True, "--progress/--no-progress"),
+) -> None:
+    """Degradation sweep (severity grid per modality), conflict study (scheduled conflict programs)
+    and gate sweep with realised vs projected CPU time saving."""
+    from evids.experiments.runner import open_run, stage_conflict, stage_gate, stage_sweep
+
+    kinds = [k.strip() for k in only.split(",") if k.strip()]
+    bad = [k for k in kinds if k not in _STUDIES]
+    if bad or not kinds:
+        raise UserInputError(f"--only: unknown study {bad or only!r}; choose from {', '.join(_STUDIES)}")
+    ctx = open_run(run, progress)
+    for kind in kinds:
+        {"degradation": stage_sweep, "conflict": stage_conflict, "gate": stage_gate}[kind](ctx)
+        typer.echo(f"{kind}: done")
+
+
+def report(run: Path = typer.Argument(..., help="A run folder after `evids evaluate` (and optionally `sweep`).")) -> None:
+    """Write RUN/report.html (self-contained, opens offline) and RUN/metrics.json."""
+    from evids.report import build_report
+
+    if not Path(run).is_dir():
+        raise UserInputError(f"run folder {str(run)!r} does not exist")
+    typer.echo(f"report: {build_report(run)}")
+
+
+def demo(
+    out: Path = typer.Option(Path("out/demo"), "--out", "-o", help="Run folder (re-running reuses its dataset)."),
+    quick: bool = typer.Option(False, "--quick", help="Toy scale (about 1-2 minutes) instead of the full demo."),
+    progress: bool = typer.Option(True, "--progress/--no-progress"),
+) -> None:
+    """The main job: generate a small seeded RGB + audio + RF scenario set, train sigmoid and
+    evidential models, run all ablation conditions, a reduced degradation sweep, the conflict study
+    and a gate sweep, and write OUT/report.html (about 10 minutes on 2 CPU cores; --quick: toy scale).
+    """
+    from evids.experiments import run_demo
+
+    times = run_demo(out, quick=quick, progress=progress, log=typer.echo)
+    typer.echo(f"total: {sum(times.values()):.1f} s")
+    typer.echo(f"report: {out / 'report.html'}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("train")(train)
+    app.command("evaluate")(evaluate)
+    app.command("sweep")(sweep)
+    app.command("report")(report)
+    app.command("demo")(demo)
