@@ -192,13 +192,22 @@ def _run_local(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int,
 
     method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
     threads = _threads_per_worker(workers)
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method)) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method))
+    try:
         futures = {pool.submit(render_task, t, str(sequences_dir), threads): t["name"] for t in tasks}
         for future in as_completed(futures):
             try:
                 on_done(future.result())
             except BrokenProcessPool as exc:
                 on_done({"name": futures[future], "error": f"worker process died ({exc})"})
+    except BaseException:
+        # Ctrl-C: stop the workers now (their hidden temporaries are removed by the next run) and
+        # start none of the queued sequences. (ProcessPoolExecutor has no public terminate before 3.14.)
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            proc.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
 
 
 def _run_ray(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int, address: str | None,

@@ -68,6 +68,9 @@ def generate(
     except GenerationFailed as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(1) from None
+    except KeyboardInterrupt:
+        typer.echo("interrupted: finished sequences are kept; run the same command again to resume", err=True)
+        raise typer.Exit(130) from None
     typer.echo(f"native: {result.out_dir} ({len(result.rendered)} rendered, {len(result.skipped)} already complete)")
     for kind, path in result.exports.items():
         typer.echo(f"{kind}: {path}")
