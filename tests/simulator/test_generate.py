@@ -162,3 +162,22 @@ def test_ray_executor_gives_the_same_hashes(tiny, tmp_path):
     generate_dataset(config, out, 5, workers=2, executor="ray", progress=False)
     assert load_manifest(out)["sequences"] == load_manifest(reference)["sequences"]
     assert tree_digest(out) == tree_digest(reference)
+
+
+def test_ctrl_c_stops_a_pool_run_promptly_and_keeps_finished_sequences(tmp_path):
+    config = write_tiny(tmp_path, sequences=8, frames=6)
+    out = tmp_path / "ds"
+    proc = _run_cli(config, out, "--workers", "2")
+    seqs = out / "sequences"
+    deadline = time.time() + 120
+    while time.time() < deadline and not (seqs.is_dir() and any(not p.name.startswith(".") for p in seqs.iterdir())):
+        time.sleep(0.02)
+    assert proc.poll() is None, "the run finished before it could be interrupted"
+    t0 = time.time()
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "run the same command again" in stderr
+    assert time.time() - t0 < 10
+    visible = [p for p in seqs.iterdir() if not p.name.startswith(".")]
+    assert 1 <= len(visible) < 8 and all(verify_hashes(p) == [] for p in visible)
+    assert not load_manifest(out)["complete"]
