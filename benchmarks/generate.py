@@ -43,7 +43,8 @@ def _one(workers: int, pool: bool, sequences: int, frames: int, out: Path) -> di
     peak = max(r["peak_rss_mb"] for r in results.values())
     return {"workers": workers, "pool": pool, "seconds": seconds, "sequences": sequences,
             "per_hour": sequences / seconds * 3600, "peak_worker_mb": peak,
-            "load_avg_1min": os.getloadavg()[0], "pids": len({r["pid"] for r in results.values()})}
+            "load_avg_1min": os.getloadavg()[0], "pids": len({r["pid"] for r in results.values()}),
+            "cores_used": sum(r["cpu_s"] for r in results.values()) / seconds}
 
 
 def main() -> None:
@@ -70,10 +71,14 @@ def main() -> None:
         label = {"inproc1": "1 worker, in-process (all Dr.Jit threads)", "pool1": "1 worker process (1 thread)",
                  "pool2": "2 worker processes (1 thread each)"}[key]
         print(f"{label:44s} {r['seconds']:7.1f} s  {r['per_hour']:8.0f} sequences/h  peak RSS per worker "
-              f"{r['peak_worker_mb']:6.0f} MB  (load avg after: {r['load_avg_1min']:.2f})")
+              f"{r['peak_worker_mb']:6.0f} MB  cores used {r['cores_used']:.2f}  (load avg after: {r['load_avg_1min']:.2f})")
     ratio = runs["pool2"]["per_hour"] / runs["pool1"]["per_hour"]
+    cpu_per_seq = {k: r["cores_used"] * r["seconds"] / r["sequences"] for k, r in runs.items()}
+    print(f"render CPU seconds per sequence: 1 worker {cpu_per_seq['pool1']:.2f}, 2 workers {cpu_per_seq['pool2']:.2f} "
+          "(not higher with 2 workers = no per-worker overhead; a ratio below 2 then means the cores were busy)")
     vs_default = runs["pool2"]["per_hour"] / runs["inproc1"]["per_hour"]
-    print(f"scaling ratio 2 workers / 1 worker: {ratio:.2f} (target >= 1.8)")
+    print(f"scaling ratio 2 workers / 1 worker: {ratio:.2f} (target >= 1.8); cores the renders actually got: "
+          f"{runs['pool1']['cores_used']:.2f} -> {runs['pool2']['cores_used']:.2f}")
     print(f"2 workers / default --workers 1 (in-process): {vs_default:.2f}")
     worst = max(r["peak_worker_mb"] for r in runs.values())
     print(f"peak memory per worker: {worst:.0f} MB (target < 2048 MB)")
