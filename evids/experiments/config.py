@@ -184,9 +184,17 @@ def load_experiment_config(source: str | Path | dict | ExperimentConfig) -> Expe
     if not isinstance(data, dict):
         raise UserInputError(f"{name}: expected a mapping at the top level")
     try:
-        return ExperimentConfig.model_validate(data)
+        cfg = ExperimentConfig.model_validate(data)
     except ValidationError as exc:
         raise UserInputError(format_error(exc, name)) from None
+    if cfg.dataset.generate is not None:
+        from simulator.trident import load_trident_config
+
+        try:
+            load_trident_config(cfg.dataset.generate)
+        except UserInputError as exc:
+            raise UserInputError(f"{name}: dataset.generate: {exc}") from None
+    return cfg
 
 
 _DEMO_CLIPS: list[dict[str, Any]] = [

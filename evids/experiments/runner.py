@@ -9,6 +9,7 @@ import json
 import os
 import platform
 import time
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -289,7 +290,7 @@ def _boot(ctx: Context, name: str, a: np.ndarray, b: np.ndarray, y: np.ndarray, 
         return {"comparison": name, "n_segments": int(len(y)), "n_clips": int(len(set(cid))), "delta_accuracy": None,
                 "ci_low": None, "ci_high": None, "p_value": None}
     r = paired_bootstrap(lambda p, yy: accuracy(p, yy), y, a, b, cid, np.random.default_rng(
-        np.random.SeedSequence([bc.seed, len(name)])), n_resamples=bc.n_resamples, confidence=bc.confidence)
+        np.random.SeedSequence([bc.seed, zlib.crc32(name.encode())])), n_resamples=bc.n_resamples, confidence=bc.confidence)
     return {"comparison": name, "n_segments": int(len(y)), "n_clips": r.n_clusters, "delta_accuracy": r.estimate,
             "ci_low": r.ci_low, "ci_high": r.ci_high, "p_value": r.p_value, "confidence": r.confidence,
             "n_resamples": bc.n_resamples}

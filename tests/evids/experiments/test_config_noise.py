@@ -11,6 +11,13 @@ from evids.experiments.config import SplitConfig
 from evids.experiments.noise import conflict_clip, db_to_image, degrade_clip, image_to_db, item_seed
 
 
+def test_example_config_validates_and_bad_generation_config_is_named():
+    assert load_experiment_config("examples/experiment.yaml").protocol.noise_seeds == [42, 123, 456]
+    bad = {**QUICK_CONFIG, "dataset": {"generate": {"name": "x", "clips": [{"scenario": "clear_day_quad", "count": 0}]}}}
+    with pytest.raises(UserInputError, match=r"dataset.generate: .*clips.0.count"):
+        load_experiment_config(bad)
+
+
 def test_demo_configs_validate():
     assert load_experiment_config(DEMO_CONFIG).protocol.noise_seeds == [42, 123, 456]
     assert load_experiment_config(QUICK_CONFIG).dataset.clip_duration_s == 1.0
