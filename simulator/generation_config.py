@@ -187,7 +187,7 @@ def default_randomisation() -> Randomisation:
         sun_elevation_deg=Range(min=10.0, max=60.0), sun_azimuth_deg=Range(min=0.0, max=360.0),
         air_temperature_k=Range(min=275.0, max=303.0), relative_humidity=Range(min=0.3, max=0.8),
         visibility_m=Range(min=8000.0, max=30000.0), part_temperature_offset_k=Range(min=-2.0, max=2.0),
-        camera_yaw_deg=Range(min=-0.2, max=0.2), camera_pitch_deg=Range(min=-0.2, max=0.2))
+        camera_yaw_deg=Range(min=-0.05, max=0.05), camera_pitch_deg=Range(min=-0.05, max=0.05))
 
 
 # --------------------------------------------------------------------------------------------
