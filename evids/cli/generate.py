@@ -49,6 +49,10 @@ def generate(
     if fmt.strip() == "trident":
         from simulator.trident import generate_trident
 
+        if sequences is not None or frames is not None or workers != 1 or executor != "local" or overwrite:
+            raise UserInputError("--format trident takes --clips, --seed and --quiet only (not --sequences, --frames, "
+                                 "--workers, --executor or --overwrite)")
+
         try:
             path = generate_trident(config, out, seed, n_clips=clips, progress=not quiet)
         except ValueError as exc:
