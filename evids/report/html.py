@@ -134,6 +134,8 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None) -> list[str]:
             s = (f"<b>DS vs averaging under controlled conflict</b> ({conflict['n_conflicting']} conflicting segments): "
                  f"DS {100 * ds['accuracy']:.2f}% vs average {100 * av['accuracy']:.2f}%"
                  + (f", discounted {100 * dsc['accuracy']:.2f}%" if dsc and dsc["accuracy"] is not None else "")
+                 + "".join(f", {name} {100 * x['accuracy']:.2f}%" for name, key in (("Late Fusion", "late"), ("GMU", "gmu"))
+                           if (x := r.get(("all", "conflicting", key))) and x["accuracy"] is not None)
                  + f": {_verdict(cb, 'DS', 'averaging')}")
             if cb.get("delta_accuracy") is not None:
                 s += (f"; bootstrap &Delta; = {100 * cb['delta_accuracy']:+.2f} pp, CI [{100 * cb['ci_low']:+.2f}, "
@@ -323,7 +325,7 @@ def build_report(run_dir: str | Path) -> Path:
         parts.append("<h2>Example scenarios</h2>" + _img(base64.b64encode(ex.read_bytes()).decode("ascii"),
                                                           "Video frame, MFCC and RF spectrogram, clean and degraded"))
     stages = run.get("stages", {})
-    parts.append("<h2>Run</h2>" + _table(["stage", "seconds"], [[k, _fmt(float(v["seconds"]))] for k, v in stages.items()])
+    parts.append("<h2>Run</h2>" + _table(["stage", "seconds"], [[k, _fmt(float(v["seconds"]))] for k, v in stages.items() if k != "complete"])
                  + "<details><summary>hyper-parameters and training record</summary><pre>"
                  + html.escape(json.dumps({"hyper_parameters": train["hyper_parameters"],
                                            "training": train["training"], "gate_condition_f": ev["gate_condition_f"],

@@ -34,8 +34,16 @@ def test_demo_quick_end_to_end(tmp_path):
     check_run_folder_records_config_seeds_and_hyper_parameters(out)
     check_report_references_only_existing_files_or_inline_images(out)
     check_report_renders_in_headless_chromium_without_console_errors(out, tmp_path)
-    again = _evids("report", str(out))                          # stages re-run on the finished folder
+    # re-running reuses the cached dataset and reproduces every condition's metrics exactly
+    manifest = out / "data" / "manifest.json"
+    stamp = manifest.stat().st_mtime_ns
+    first = json.loads((out / "evaluate.json").read_text())["conditions"]
+    again = _evids("demo", "--quick", "--out", str(out), "--no-progress")
     assert again.returncode == 0, again.stderr[-2000:]
+    assert manifest.stat().st_mtime_ns == stamp
+    assert json.loads((out / "evaluate.json").read_text())["conditions"] == first
+    other = _evids("demo", "--out", str(out), "--no-progress")        # a different config: refused, exit 2
+    assert other.returncode == 2 and "different config" in other.stderr
 
 
 def check_every_condition_has_every_metric_finite_and_in_range(demo_run):
