@@ -299,6 +299,7 @@ def _boot(ctx: Context, name: str, a: np.ndarray, b: np.ndarray, y: np.ndarray, 
 def bootstrap_comparisons(ctx: Context, preds: dict[str, Prediction], y: np.ndarray, cid: np.ndarray) -> list[dict]:
     """Key paired comparisons on the first noise seed, clip-clustered (A minus B, accuracy)."""
     pairs = [("d", "b", "EDL + average (d) vs Late Fusion (b)"), ("e", "b", "EDL + DS (e) vs Late Fusion (b)"),
+             ("d", "c", "EDL + average (d) vs GMU (c)"),
              ("e", "d", "DS (e) vs average (d), standard noise"),
              ("g", "d_prime", "DS (g) vs average (d'), all modalities noisy"),
              ("h_discounted", "d", "discounted (h) vs average (d)"), ("f", "e", "DS + gating (f) vs DS (e)"),
