@@ -352,7 +352,7 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_di
         from scenes.defaults import offset_for
         from scenes.assets import ROLES
 
-        for t_data, t_model in zip(targets, base.targets):
+        for t_data in targets:
             delta = r.part_temperature_offset_k.draw(rng)
             thermal = t_data["thermal"]
             if thermal["mode"] == "offset":
