@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # One script, two jobs, each installing what it needs first (idempotent):
-#   bash run.sh demo   install, then render two preset scenarios with contact sheets into out/
+#   bash run.sh demo   install, then run `evids demo`: generate tri-modal scenarios, train, evaluate
+#                      every fusion condition, sweeps, conflict study, gate sweep -> out/demo/report.html
 #   bash run.sh test   install (with test extras), then run the whole test suite
 # Installs: Debian libllvm19 when root with apt (Dr.Jit's fast CPU backend needs libLLVM >= 16),
-# a local virtual environment .venv with this package and its pinned dependencies.
+# Debian chromium for the test job (the report page is checked in a headless browser), and a local
+# virtual environment .venv with this package and its pinned dependencies.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")"
 
@@ -24,6 +26,17 @@ install_system() {
       || echo "[setup] warning: could not install libllvm19; rendering will use Mitsuba's slow scalar variant"
   else
     echo "[setup] warning: no libLLVM >= 16 found and not root with apt; install libllvm19 (or LLVM 16+) for fast rendering"
+  fi
+}
+
+install_chromium() {
+  if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then return; fi
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    echo "[setup] installing chromium (apt) for the report-page test"
+    apt-get update -qq >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null \
+      || echo "[setup] warning: could not install chromium; the report-page browser test will be skipped"
+  else
+    echo "[setup] note: chromium not found; the report-page browser test will be skipped"
   fi
 }
 
@@ -49,18 +62,16 @@ case "$job" in
     install_system
     install_python "audio"
     shift
-    mkdir -p out
-    for scene in dusk_crossover bird_confuser; do
-      .venv/bin/evids render "$scene" --out out --preview "$@"
-    done
-    echo "open out/dusk_crossover_preview.png and out/bird_confuser_preview.png"
+    .venv/bin/evids demo --out out/demo "$@"
+    echo "open out/demo/report.html"
     ;;
   test)
     install_system
-    install_python "audio,dev"
+    install_chromium
+    install_python "audio,dev,ray"
     shift
     set +e
-    .venv/bin/python -m pytest -q -p no:cacheprovider "$@"
+    .venv/bin/python -m pytest -q -p no:cacheprovider -n 2 "$@"
     status=$?
     set -e
     if [ "$status" = 5 ]; then echo "error: pytest collected no tests"; exit 1; fi
