@@ -42,19 +42,21 @@ def validate_mapping(model: type[ModelT], data: Any, source: str) -> ModelT:
         raise UserInputError(format_validation_error(exc, source)) from None
 
 
-def load_validated(path_or_name: str | Path | dict, model: type[ModelT], library_dir: Path, kind: str) -> ModelT:
-    """A mapping, a YAML path, or a preset name (no suffix, no separator) from ``library_dir``."""
+def load_validated(path_or_name: str | Path | dict, model: type[ModelT], library_dir: Path | None, kind: str) -> ModelT:
+    """A mapping, a YAML path, or a preset name (no suffix, no separator) from ``library_dir``
+    (``None``: files only)."""
     if isinstance(path_or_name, dict):
         return validate_mapping(model, path_or_name, f"<{kind}>")
     text_arg = str(path_or_name)
     path = Path(text_arg)
-    names = sorted(p.stem for p in Path(library_dir).glob("*.yaml"))
-    if not path.suffix and "/" not in text_arg and not path.exists():
+    names = sorted(p.stem for p in Path(library_dir).glob("*.yaml")) if library_dir is not None else []
+    if library_dir is not None and not path.suffix and "/" not in text_arg and not path.exists():
         path = Path(library_dir) / f"{text_arg}.yaml"
         if not path.is_file():
             raise UserInputError(f"unknown {kind} {text_arg!r}; valid presets: {', '.join(names)}")
     if not path.is_file():
-        raise UserInputError(f"{kind} file {text_arg!r} does not exist; presets: {', '.join(names)}")
+        hint = f"; presets: {', '.join(names)}" if names else ""
+        raise UserInputError(f"{kind} file {text_arg!r} does not exist{hint}")
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:

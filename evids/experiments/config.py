@@ -11,8 +11,7 @@ import copy
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from evids.errors import UserInputError
 from evids.models.train import TrainConfig
@@ -155,38 +154,14 @@ class ExperimentConfig(_Model):
     ece_bins: int = Field(default=15, ge=2, le=100)
 
 
-def format_error(exc: ValidationError, source: str) -> str:
-    parts = []
-    for err in exc.errors():
-        loc = ".".join(str(x) for x in err["loc"]) or "<root>"
-        bad = err.get("input")
-        shown = "" if isinstance(bad, dict) else f" (got {bad!r})"
-        parts.append(f"{loc}: {err['msg']}{shown}")
-    return f"{source}: invalid experiment config: " + "; ".join(parts)
-
-
 def load_experiment_config(source: str | Path | dict | ExperimentConfig) -> ExperimentConfig:
     """Validate a mapping, a YAML file or an already-built config; bad input -> UserInputError."""
+    from scenes.loader import load_validated
+
     if isinstance(source, ExperimentConfig):
         return source
-    name = "<config>"
-    if isinstance(source, dict):
-        data: Any = source
-    else:
-        path = Path(source)
-        name = str(path)
-        if not path.is_file():
-            raise UserInputError(f"experiment config {name!r} does not exist")
-        try:
-            data = yaml.safe_load(path.read_text())
-        except yaml.YAMLError as exc:
-            raise UserInputError(f"{name}: not valid YAML: {exc}") from None
-    if not isinstance(data, dict):
-        raise UserInputError(f"{name}: expected a mapping at the top level")
-    try:
-        cfg = ExperimentConfig.model_validate(data)
-    except ValidationError as exc:
-        raise UserInputError(format_error(exc, name)) from None
+    name = "<experiment config>" if isinstance(source, dict) else str(source)
+    cfg = load_validated(source, ExperimentConfig, None, "experiment config")
     if cfg.dataset.generate is not None:
         from simulator.trident import load_trident_config
 
