@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
 
 from scenes import load_scenario
 from simulator.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8

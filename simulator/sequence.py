@@ -33,9 +33,13 @@ class PassTimes:
         return now
 
 
-def package_versions() -> dict[str, str]:
+RENDER_PACKAGES = ("evids", "mitsuba", "drjit", "numpy", "colour-science", "opencv-python-headless")
+
+
+def package_versions(packages: tuple[str, ...] = RENDER_PACKAGES) -> dict[str, str]:
+    """Python and distribution versions, recorded in every written dataset or run."""
     out = {"python": platform.python_version()}
-    for dist in ("evids", "mitsuba", "drjit", "numpy", "colour-science", "opencv-python-headless"):
+    for dist in packages:
         try:
             out[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:

@@ -331,15 +331,9 @@ def _default_frames(scenario: Scenario, seed: int, n_frames: int, width_px: int,
 
 
 def _versions() -> dict[str, str]:
-    from importlib import metadata
+    from simulator.sequence import package_versions
 
-    out = {}
-    for pkg in ("evids", "numpy", "scipy", "librosa", "soundfile", "opencv-python-headless", "mitsuba"):
-        try:
-            out[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            out[pkg] = "not installed"
-    return out
+    return package_versions(("evids", "numpy", "scipy", "librosa", "soundfile", "opencv-python-headless", "mitsuba"))
 
 
 def _content_hash(root: Path) -> str:

@@ -7,7 +7,6 @@ import csv
 import io
 import json
 import os
-import platform
 import time
 import zlib
 from dataclasses import dataclass, field
@@ -19,12 +18,12 @@ import torch
 import yaml
 
 from evids.errors import UserInputError
-from evids.experiments.conditions import (CONDITIONS, METRICS, Condition, Prediction, choose_gate, entropy, fuse,
+from evids.experiments.conditions import (CONDITIONS, Condition, Prediction, choose_gate, fuse,
                                           metrics_of, predict_condition)
 from evids.experiments.config import ExperimentConfig, load_experiment_config
 from evids.experiments.data import Prepared, clip_ids_of, labels_of, prepare
 from evids.experiments.noise import conflict_clip, degrade_clip
-from evids.experiments.pipeline import Models, Outputs, encode, gmu_logit, late_probs, load_models, save_models, train_all
+from evids.experiments.pipeline import Models, Outputs, encode, load_models, save_models, train_all
 from evids.gating import GateParams, HysteresisGate, sweep_gates
 from evids.metrics import paired_bootstrap, uauc
 from evids.models.backbones import MODALITIES
@@ -92,15 +91,9 @@ def mark_stage(run_dir: Path, stage: str, seconds: float, extra: dict | None = N
 
 
 def _versions() -> dict[str, str]:
-    from importlib import metadata
+    from simulator.sequence import package_versions
 
-    out = {"python": platform.python_version()}
-    for pkg in ("evids", "torch", "numpy", "scipy", "librosa", "mitsuba"):
-        try:
-            out[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            out[pkg] = "not installed"
-    return out
+    return package_versions(("evids", "torch", "numpy", "scipy", "librosa", "mitsuba"))
 
 
 # ------------------------------------------------------------------------------------------
