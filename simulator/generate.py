@@ -156,6 +156,9 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
             import drjit as dr
 
             dr.set_thread_count(int(threads))
+            import cv2
+
+            cv2.setNumThreads(int(threads))
         scenario = Scenario.model_validate(task["scenario"])
         cpu0 = time.process_time()
         written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False)
@@ -191,7 +194,7 @@ def _run_local(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int,
     from concurrent.futures.process import BrokenProcessPool
 
     method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
-    threads = _threads_per_worker(workers)
+    threads = 1 if force_pool else _threads_per_worker(workers)
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method))
     try:
         futures = {pool.submit(render_task, t, str(sequences_dir), threads): t["name"] for t in tasks}
