@@ -19,3 +19,18 @@ def shrink(scenario: Scenario, width_px: int = 160, height_px: int = 128, spp: i
 @pytest.fixture
 def shrink_scenario():
     return shrink
+
+
+def _hypothesis_profile() -> None:
+    """CI runs property tests derandomized (a fixed example sequence) so a run can only fail for a
+    reason that reproduces; locally hypothesis explores new examples each run."""
+    import os
+
+    from hypothesis import settings
+
+    settings.register_profile("ci", derandomize=True, deadline=None)
+    if os.environ.get("CI"):
+        settings.load_profile("ci")
+
+
+_hypothesis_profile()
