@@ -34,10 +34,25 @@ def _register_all() -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console entry point; expected input errors print one line and exit 2."""
+    """Console entry point: bad input prints one line and exits 2; a file-system failure (disk full,
+    permission) prints one line naming the path and exits 1; Ctrl-C exits 130. Anything else is a
+    bug and keeps its traceback (set EVIDS_DEBUG=1 to see tracebacks for the cases above too)."""
+    import os
+
     _register_all()
+    debug = bool(os.environ.get("EVIDS_DEBUG"))
     try:
         app(args=argv, standalone_mode=True)
     except UserInputError as exc:
+        if debug:
+            raise
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)
+    except OSError as exc:
+        if debug:
+            raise
+        typer.echo(f"error: {exc.strerror or exc}{f': {exc.filename}' if exc.filename else ''}", err=True)
+        sys.exit(1)
+    except KeyboardInterrupt:
+        typer.echo("interrupted", err=True)
+        sys.exit(130)

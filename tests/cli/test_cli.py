@@ -79,3 +79,12 @@ def test_degrade_ir_blind_labels_the_conflict_on_a_rendered_sequence(tmp_path):
     result = _evids("degrade", str(native), "--spec", str(bad_spec), "--out", str(tmp_path / "deg2"))
     assert result.returncode == 2 and "severity" in result.stderr
     assert not (tmp_path / "deg2").exists()
+
+
+def test_unwritable_output_is_one_line_and_exit_1(tmp_path):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    result = _evids("render", "clear_day_quad", "--out", str(blocker / "out"), "--frames", "1", "--quiet")
+    assert result.returncode == 1
+    assert result.stderr.startswith("error: ") and "a_file" in result.stderr
+    assert "Traceback" not in result.stderr
