@@ -18,26 +18,26 @@ have_llvm16() {
   return 1
 }
 
-install_system() {
-  if have_llvm16; then return; fi
+# apt_install PACKAGE WHY CONSEQUENCE: install a Debian package when root with apt, else explain.
+apt_install() {
+  local package="$1" why="$2" consequence="$3"
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-    echo "[setup] installing libllvm19 (apt)"
-    apt-get update -qq >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null \
-      || echo "[setup] warning: could not install libllvm19; rendering will use Mitsuba's slow scalar variant"
+    echo "[setup] installing $package (apt) $why"
+    apt-get update -qq >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$package" >/dev/null \
+      || echo "[setup] warning: could not install $package; $consequence"
   else
-    echo "[setup] warning: no libLLVM >= 16 found and not root with apt; install libllvm19 (or LLVM 16+) for fast rendering"
+    echo "[setup] warning: $package is missing and this is not root with apt; $consequence"
   fi
 }
 
+install_system() {
+  have_llvm16 || apt_install libllvm19 "for Dr.Jit's fast CPU backend (libLLVM >= 16)" \
+    "rendering will use Mitsuba's slow scalar variant (install LLVM 16+ to fix)"
+}
+
 install_chromium() {
-  if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then return; fi
-  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-    echo "[setup] installing chromium (apt) for the report-page test"
-    apt-get update -qq >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null \
-      || echo "[setup] warning: could not install chromium; the report-page browser test will be skipped"
-  else
-    echo "[setup] note: chromium not found; the report-page browser test will be skipped"
-  fi
+  command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 \
+    || apt_install chromium "for the report-page test" "the report-page browser test will be skipped"
 }
 
 install_python() {
