@@ -23,10 +23,9 @@ CONFIG = "mixed_small"
 
 
 def _one(workers: int, pool: bool, sequences: int, frames: int, out: Path) -> dict:
-    from simulator.generate import plan_dataset, run_tasks
-    from simulator.generation_config import load_generation_config
     from scenes.loader import validate_mapping
-    from simulator.generation_config import GenerationConfig
+    from simulator.dataset.config import GenerationConfig, load_generation_config
+    from simulator.dataset.generate import plan_dataset, run_tasks
 
     base = load_generation_config(CONFIG)
     config = validate_mapping(GenerationConfig, {**base.model_dump(mode="json"), "sequences": sequences,

@@ -12,12 +12,11 @@ from __future__ import annotations
 import argparse
 import time
 
-
 from scenes import load_scenario
-from simulator.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8
-from simulator.labels import frame_labels
-from simulator.render import SequenceRenderer
-from simulator.timeline import build_timeline
+from simulator.physics.timeline import build_timeline
+from simulator.render.labels import frame_labels
+from simulator.render.renderer import SequenceRenderer
+from simulator.sensors.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8
 
 
 def main() -> None:

@@ -23,10 +23,10 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import numpy as np  # noqa: E402
 
 from scenes.loader import load_scenario  # noqa: E402
-from simulator import trident as tr  # noqa: E402
-from simulator.acoustics import AUDIO_SAMPLE_RATE_HZ, Ambience, synthesize_audio  # noqa: E402
-from simulator.rf import spectrogram_image, synthesize_rf  # noqa: E402
-from simulator.timeline import build_timeline  # noqa: E402
+from simulator.dataset import trident as tr  # noqa: E402
+from simulator.physics.acoustics import AUDIO_SAMPLE_RATE_HZ, Ambience, synthesize_audio  # noqa: E402
+from simulator.physics.rf import spectrogram_image, synthesize_rf  # noqa: E402
+from simulator.physics.timeline import build_timeline  # noqa: E402
 
 
 def _clip(timeline, seed: int, cfg: tr.TridentConfig, ambience: Ambience) -> dict[str, float]:

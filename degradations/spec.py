@@ -19,7 +19,13 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from degradations.base import DEFAULT_LEVEL, MODALITIES, PER_FRAME_KEYS, make_rng
 from degradations.errors import DegradationError, SpecError
 from degradations.registry import REGISTRY, _to_numpy, get
-from degradations.schedule import PROGRAMS, Event, Schedule, StepSchedule, conflict_program
+from degradations.schedule import (
+    PROGRAMS,
+    Event,
+    Schedule,
+    StepSchedule,
+    conflict_program,
+)
 
 Severity = Annotated[float, Field(ge=0.0, le=5.0)]
 

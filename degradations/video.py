@@ -6,7 +6,6 @@ tables follow ImageNet-C where it has the corruption (noise, blur, JPEG).
 """
 from __future__ import annotations
 
-
 import cv2
 import numpy as np
 

@@ -19,10 +19,15 @@ import numpy as np  # noqa: E402
 from scipy.signal import spectrogram  # noqa: E402
 
 from scenes.loader import load_scenario, scenario_from_dict  # noqa: E402
-from simulator import trident as tr  # noqa: E402
-from simulator.acoustics import AUDIO_SAMPLE_RATE_HZ, Ambience, pa_to_db_spl, synthesize_audio  # noqa: E402
-from simulator.rf import spectrogram_image, synthesize_rf  # noqa: E402
-from simulator.timeline import build_timeline  # noqa: E402
+from simulator.dataset import trident as tr  # noqa: E402
+from simulator.physics.acoustics import (  # noqa: E402
+    AUDIO_SAMPLE_RATE_HZ,
+    Ambience,
+    pa_to_db_spl,
+    synthesize_audio,
+)
+from simulator.physics.rf import spectrogram_image, synthesize_rf  # noqa: E402
+from simulator.physics.timeline import build_timeline  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "images"
 

@@ -18,7 +18,13 @@ from typing import Literal, NamedTuple, Union
 import torch
 from torch import Tensor, nn
 
-from evids.heads import Construction, _check_construction, belief_masses, check_alpha, opinion_to_alpha
+from evids.heads import (
+    Construction,
+    _check_construction,
+    belief_masses,
+    check_alpha,
+    opinion_to_alpha,
+)
 
 Alphas = Union[Tensor, Sequence[Tensor]]
 Mask = Union[Tensor, Sequence[Tensor], None]

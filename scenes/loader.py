@@ -7,10 +7,11 @@ from typing import Any, TypeVar
 import yaml
 from pydantic import BaseModel, ValidationError
 
-from evids.errors import UserInputError
+from scenes.errors import UserInputError
 from scenes.schema import Scenario
 
 LIBRARY_DIR = Path(__file__).with_name("library")
+GENERATION_DIR = Path(__file__).with_name("generation")
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
 

@@ -9,7 +9,7 @@ import sys
 
 import typer
 
-from evids.errors import UserInputError
+from scenes.errors import UserInputError
 
 app = typer.Typer(
     name="evids",

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import typer
 
-from evids.errors import UserInputError
+from scenes.errors import UserInputError
 
 
 def degrade(
@@ -21,7 +21,7 @@ def degrade(
     """
     from degradations.errors import DegradationError
     from degradations.spec import load_spec
-    from evids.degrade_dataset import degrade_sequence, find_sequences
+    from simulator.dataset.degrade import degrade_sequence, find_sequences
 
     try:
         parsed = load_spec(spec)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from evids.errors import UserInputError
+from scenes.errors import UserInputError
 
 _STUDIES = ("degradation", "conflict", "gate")
 
@@ -50,7 +50,12 @@ def sweep(
 ) -> None:
     """Degradation sweep (severity grid per modality), conflict study (scheduled conflict programs)
     and gate sweep with realised vs projected CPU time saving."""
-    from evids.experiments.runner import open_run, stage_conflict, stage_gate, stage_sweep
+    from evids.experiments.runner import (
+        open_run,
+        stage_conflict,
+        stage_gate,
+        stage_sweep,
+    )
 
     kinds = [k.strip() for k in only.split(",") if k.strip()]
     bad = [k for k in kinds if k not in _STUDIES]

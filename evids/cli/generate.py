@@ -1,7 +1,7 @@
 """`evids generate`, `evids export`, `evids verify`, `evids fixture`: datasets at scale.
 
-Thin wrappers over simulator.generate (native datasets, exporters, verify), simulator.trident
-(`--format trident`) and simulator.fixtures.
+Thin wrappers over simulator.dataset.generate (native datasets, exporters, verify), simulator.dataset.trident
+(`--format trident`) and simulator.dataset.fixtures.
 """
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ from typing import Optional
 
 import typer
 
-from evids.errors import UserInputError
+from scenes.errors import UserInputError
 
 
 def _formats(text: str) -> tuple[str, ...]:
-    from simulator.generate import EXPORT_FORMATS
+    from simulator.dataset.generate import EXPORT_FORMATS
 
     formats = tuple(dict.fromkeys(f.strip() for f in text.split(",") if f.strip()))
     valid = ("native",) + EXPORT_FORMATS
@@ -47,7 +47,7 @@ def generate(
     evids generate trident_mini --out out/trident --format trident
     """
     if fmt.strip() == "trident":
-        from simulator.trident import generate_trident
+        from simulator.dataset.trident import generate_trident
 
         if sequences is not None or frames is not None or workers != 1 or executor != "local" or overwrite:
             raise UserInputError("--format trident takes --clips, --seed and --quiet only (not --sequences, --frames, "
@@ -63,7 +63,7 @@ def generate(
         return
     if clips is not None:
         raise UserInputError("--clips applies to --format trident only; use --sequences")
-    from simulator.generate import GenerationFailed, generate_dataset
+    from simulator.dataset.generate import GenerationFailed, generate_dataset
 
     try:
         result = generate_dataset(config, out, seed, sequences=sequences, frames=frames, workers=workers,
@@ -95,7 +95,7 @@ def export(
 
     Example: evids export out/mixed --format mot --out out/mixed_mmuav --annotate-every 20
     """
-    from simulator.generate import export_dataset
+    from simulator.dataset.generate import export_dataset
 
     formats = [f for f in _formats(fmt) if f != "native"]
     if not formats:
@@ -110,7 +110,7 @@ def export(
 def verify(dataset: Path = typer.Argument(..., help="A native dataset folder.")) -> None:
     """Re-hash every sequence; list missing and corrupt ones (exit 1 if any). Re-running the same
     `evids generate` command regenerates exactly those."""
-    from simulator.generate import verify_dataset
+    from simulator.dataset.generate import verify_dataset
 
     report = verify_dataset(dataset, progress=True)
     for name in report.missing:
@@ -134,7 +134,7 @@ def fixture(
 
     Example: evids fixture mmuav --out tests/data/mmuav
     """
-    from simulator.fixtures import build_fixture
+    from simulator.dataset.fixtures import build_fixture
 
     typer.echo(f"{name}: {build_fixture(name, out, preset=preset, seed=seed)}")
 

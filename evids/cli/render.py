@@ -1,4 +1,4 @@
-"""`evids render` and `evids scenes ...`: thin wrappers over scenes.loader and simulator.sequence."""
+"""`evids render` and `evids scenes ...`: thin wrappers over scenes.loader and simulator.dataset.sequence."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,13 +6,13 @@ from typing import Optional
 
 import typer
 
-from evids.errors import UserInputError
+from scenes.errors import UserInputError
 
 scenes_app = typer.Typer(help="List, show and validate scene presets and files.", no_args_is_help=True)
 
 
 def _parse_formats(text: str) -> tuple[str, ...]:
-    from simulator.sequence import FORMATS
+    from simulator.dataset.sequence import FORMATS
 
     formats = tuple(f.strip() for f in text.split(",") if f.strip())
     bad = [f for f in formats if f not in FORMATS]
@@ -35,7 +35,7 @@ def render(
     Example: evids render dusk_crossover --out out --preview
     """
     from scenes.loader import load_scenario
-    from simulator.sequence import render_sequence
+    from simulator.dataset.sequence import render_sequence
 
     scenario = load_scenario(scene)
     formats = _parse_formats(fmt)

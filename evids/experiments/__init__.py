@@ -5,7 +5,12 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from evids.experiments.config import DEMO_CONFIG, QUICK_CONFIG, ExperimentConfig, load_experiment_config
+from evids.experiments.config import (
+    DEMO_CONFIG,
+    QUICK_CONFIG,
+    ExperimentConfig,
+    load_experiment_config,
+)
 
 __all__ = ["DEMO_CONFIG", "QUICK_CONFIG", "ExperimentConfig", "load_experiment_config", "run_all", "run_demo"]
 
@@ -14,6 +19,7 @@ def run_all(cfg: ExperimentConfig, out: Path, progress: bool = True, log=print) 
     """train -> evaluate -> examples -> sweep -> conflict -> gate -> report; returns wall seconds per stage."""
     from evids.experiments import runner
     from evids.report import build_report
+    from evids.runfolder import mark_stage
 
     out = Path(out)
     times: dict[str, float] = {}
@@ -32,7 +38,7 @@ def run_all(cfg: ExperimentConfig, out: Path, progress: bool = True, log=print) 
     timed("conflict", runner.stage_conflict, ctx)
     timed("gate", runner.stage_gate, ctx)
     timed("report", build_report, out)
-    runner.mark_stage(out, "complete", sum(times.values()), {"stage_seconds": {k: round(v, 2) for k, v in times.items()}})
+    mark_stage(out, "complete", sum(times.values()), {"stage_seconds": {k: round(v, 2) for k, v in times.items()}})
     return times
 
 

@@ -13,8 +13,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from evids.errors import UserInputError
 from evids.models.train import TrainConfig
+from scenes.errors import UserInputError
 
 
 class _Model(BaseModel):
@@ -163,7 +163,7 @@ def load_experiment_config(source: str | Path | dict | ExperimentConfig) -> Expe
     name = "<experiment config>" if isinstance(source, dict) else str(source)
     cfg = load_validated(source, ExperimentConfig, None, "experiment config")
     if cfg.dataset.generate is not None:
-        from simulator.trident import load_trident_config
+        from simulator.dataset.trident import load_trident_config
 
         try:
             load_trident_config(cfg.dataset.generate)

@@ -1,5 +1,5 @@
 """Dataset preparation for experiments: generate (or take) a TRIDENT-layout folder, load it through
-:class:`evids.data.trident.TridentDataset` (the same path for generated, exported and real data),
+:class:`simulator.formats.trident.TridentDataset` (the same path for generated, exported and real data),
 keep each clip's waveform (for audio noise before the MFCC) and I/Q (for RF noise before the STFT)
 when present, and split clips (stratified by label, seeded) into train/val/test."""
 from __future__ import annotations
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from evids.errors import UserInputError
 from evids.experiments.config import DatasetConfig, SplitConfig
+from scenes.errors import UserInputError
 
 SPLITS = ("train", "val", "test")
 
@@ -51,7 +51,7 @@ def _frames_fn(render_px: int):
     def render(scenario, seed, n_frames, width_px, height_px):
         import cv2
 
-        from simulator.sequence import render_rgb_video
+        from simulator.dataset.sequence import render_rgb_video
 
         small = render_rgb_video(scenario, seed, n_frames, render_px, render_px)
         if render_px == width_px and render_px == height_px:
@@ -71,7 +71,7 @@ def ensure_dataset(cfg: DatasetConfig, run_dir: Path, progress: bool = True) -> 
     root = run_dir / "data"
     if (root / "manifest.json").is_file():
         return root, True
-    from simulator.trident import generate_trident, load_trident_config
+    from simulator.dataset.trident import generate_trident, load_trident_config
 
     gen = load_trident_config(cfg.generate)
     if cfg.clip_duration_s is not None:
@@ -86,7 +86,7 @@ def load_clips(root: Path, progress: bool = True) -> list[ClipArrays]:
     """Every clip under a TRIDENT-layout root, through the shared loader."""
     import soundfile
 
-    from evids.data.trident import TridentDataset
+    from simulator.formats.trident import TridentDataset
 
     root = Path(root)
     try:

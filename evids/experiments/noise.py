@@ -54,7 +54,7 @@ def degrade_clip(clip: ClipArrays, clip_index: int, noise_seed: int, *, audio: l
                  video: list[NoiseEntry] = (), rf_spec: list[NoiseEntry] = (), rf_iq: list[NoiseEntry] = (),
                  rf_range_db: float = 60.0, rf_config: dict | None = None) -> Degraded:
     """The clip's (mfcc, video, rf) with the listed degradations; untouched streams are the clean arrays."""
-    from simulator.trident import mfcc_segments
+    from simulator.formats.trident import mfcc_segments
 
     mfcc, vid, rf = clip.mfcc, clip.video, clip.rf
     if audio:
@@ -68,7 +68,7 @@ def degrade_clip(clip: ClipArrays, clip_index: int, noise_seed: int, *, audio: l
     if rf_iq:
         if clip.iq is None or rf_config is None:
             raise ValueError(f"clip {clip.clip_id} has no I/Q capture (rf_iq/ folder); I/Q-level RF noise is impossible")
-        from simulator.rf import RFConfig, spectrogram_dbm, spectrogram_image
+        from simulator.physics.rf import RFConfig, spectrogram_dbm, spectrogram_image
 
         iq = clip.iq
         for k, e in enumerate(rf_iq):
@@ -88,7 +88,7 @@ def conflict_clip(clip: ClipArrays, clip_index: int, noise_seed: int, program: s
     """Apply one conflict program to a clip; returns the inputs and per-segment flags
     ``{"compromised": {audio, video, rf}: (S,) bool, "conflict": (S,) bool}``."""
     from degradations.spec import apply_spec, parse_spec
-    from simulator.trident import mfcc_segments
+    from simulator.formats.trident import mfcc_segments
 
     s = clip.n_segments
     rf_db = image_to_db(clip.rf, rf_range_db)                       # (S, F, T)

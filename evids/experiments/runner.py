@@ -3,30 +3,42 @@ study, gate sweep with realised CPU timing) -> report. Each stage writes its fil
 (temporary name, then rename) and records itself in ``run.json`` only when complete."""
 from __future__ import annotations
 
-import csv
-import io
-import json
 import os
 import time
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
 import yaml
 
-from evids.errors import UserInputError
-from evids.experiments.conditions import (CONDITIONS, Condition, Prediction, choose_gate, fuse,
-                                          metrics_of, predict_condition)
+from evids.experiments.conditions import (
+    CONDITIONS,
+    Condition,
+    Prediction,
+    choose_gate,
+    fuse,
+    metrics_of,
+    predict_condition,
+)
 from evids.experiments.config import ExperimentConfig, load_experiment_config
 from evids.experiments.data import Prepared, clip_ids_of, labels_of, prepare
 from evids.experiments.noise import conflict_clip, degrade_clip
-from evids.experiments.pipeline import Models, Outputs, encode, load_models, save_models, train_all
+from evids.experiments.pipeline import (
+    Models,
+    Outputs,
+    encode,
+    load_models,
+    save_models,
+    train_all,
+)
 from evids.gating import GateParams, HysteresisGate, sweep_gates
 from evids.metrics import paired_bootstrap, uauc
 from evids.models.backbones import MODALITIES
+from evids.runfolder import mark_stage, write_csv, write_json
+from scenes.errors import UserInputError
+from simulator.files import write_atomic
 
 VARIANTS = ("clean", "standard", "all_spec", "iq")
 
@@ -35,63 +47,8 @@ VARIANTS = ("clean", "standard", "all_spec", "iq")
 # run folder I/O
 # ------------------------------------------------------------------------------------------
 
-def write_atomic(path: Path, data: str | bytes) -> None:
-    """Write via a temporary sibling and rename (no half-written file on failure)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    if isinstance(data, bytes):
-        tmp.write_bytes(data)
-    else:
-        tmp.write_text(data)
-    os.replace(tmp, path)
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        return float(x) if np.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
-
-
-def write_json(path: Path, obj: Any) -> None:
-    write_atomic(path, json.dumps(_jsonable(obj), indent=1))
-
-
-def write_csv(path: Path, rows: list[dict]) -> None:
-    buf = io.StringIO()
-    keys: list[str] = []
-    for r in rows:
-        keys += [k for k in r if k not in keys]
-    w = csv.DictWriter(buf, fieldnames=keys)
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: (json.dumps(_jsonable(v)) if isinstance(v, (list, tuple, dict)) else v) for k, v in r.items()})
-    write_atomic(path, buf.getvalue())
-
-
-def read_run(run_dir: Path) -> dict:
-    p = run_dir / "run.json"
-    return json.loads(p.read_text()) if p.is_file() else {"stages": {}}
-
-
-def mark_stage(run_dir: Path, stage: str, seconds: float, extra: dict | None = None) -> None:
-    run = read_run(run_dir)
-    run.setdefault("stages", {})[stage] = {"seconds": round(seconds, 2), "finished_utc": time.strftime(
-        "%Y-%m-%dT%H:%M:%SZ", time.gmtime()), **(extra or {})}
-    write_json(run_dir / "run.json", run)
-
-
 def _versions() -> dict[str, str]:
-    from simulator.sequence import package_versions
+    from simulator.files import package_versions
 
     return package_versions(("evids", "torch", "numpy", "scipy", "librosa", "mitsuba"))
 

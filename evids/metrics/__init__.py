@@ -2,9 +2,28 @@
 bootstrap, detection (IoU matching, AP50, detection ECE/UAUC), Anti-UAV state accuracy, MOTA/IDF1, HOTA."""
 from __future__ import annotations
 
-from evids.metrics.bootstrap import BootstrapResult, clustered_bootstrap, clustered_resample, paired_bootstrap
-from evids.metrics.calibration import ReliabilityData, detection_ece, ece, plot_reliability, reliability_diagram
-from evids.metrics.classification import accuracy, apply_temperature, brier, fit_temperature, macro_f1, nll, uauc
+from evids.metrics.bootstrap import (
+    BootstrapResult,
+    clustered_bootstrap,
+    clustered_resample,
+    paired_bootstrap,
+)
+from evids.metrics.calibration import (
+    ReliabilityData,
+    detection_ece,
+    ece,
+    plot_reliability,
+    reliability_diagram,
+)
+from evids.metrics.classification import (
+    accuracy,
+    apply_temperature,
+    brier,
+    fit_temperature,
+    macro_f1,
+    nll,
+    uauc,
+)
 from evids.metrics.detection import (
     DetectionMatch,
     average_precision,

@@ -254,7 +254,7 @@ def build_report(run_dir: str | Path) -> Path:
     ev, sweep, conflict, gate = load("evaluate.json"), load("sweep.json"), load("conflict.json"), load("gate.json")
     train, run = load("train.json"), load("run.json") or {}
     if ev is None or train is None:
-        from evids.errors import UserInputError
+        from scenes.errors import UserInputError
 
         raise UserInputError(f"{str(run_dir)!r}: run `evids train` and `evids evaluate` before `evids report`")
     parts = [f"<h1>evids experiment report</h1><p class='note'>Run folder: {html.escape(str(run_dir.name))}; built "
@@ -341,7 +341,7 @@ def build_report(run_dir: str | Path) -> Path:
                                            "noise_protocol": ev["noise_protocol"]}, indent=1)) + "</pre></details>")
     doc = ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>evids report</title>"
            f"<style>{CSS}</style></head><body>" + "\n".join(parts) + "</body></html>")
-    from evids.experiments.runner import write_atomic
+    from simulator.files import write_atomic
 
     out = run_dir / "report.html"
     write_atomic(out, doc)
@@ -349,7 +349,7 @@ def build_report(run_dir: str | Path) -> Path:
                "conflict": conflict and {k: conflict[k] for k in ("rules", "uauc_compromised", "bootstrap",
                                                                   "fallback_rate", "n_segments", "n_conflicting")},
                "gate_timing": gate and gate["timing"], "headline": headline(ev, conflict, gate)}
-    from evids.experiments.runner import write_json
+    from evids.runfolder import write_json
 
     write_json(run_dir / "metrics.json", metrics)
     return out

@@ -4,15 +4,14 @@ import subprocess
 import sys
 
 import numpy as np
-import pytest
 import yaml
 
 from scenes import load_scenario
 from scenes.loader import LIBRARY_DIR
-from simulator.labels import local_contrast_k, tight_box
-from simulator.native import load_mask, load_thermal_kelvin, verify_hashes
-from simulator.sequence import render_sequence
-
+from simulator.dataset.sequence import render_sequence
+from simulator.files import verify_hashes
+from simulator.formats.native import load_mask, load_thermal_kelvin
+from simulator.render.labels import local_contrast_k, tight_box
 from tests.conftest import shrink
 
 

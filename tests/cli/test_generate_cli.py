@@ -7,7 +7,7 @@ from importlib.metadata import entry_points
 
 import pytest
 
-from tests.simulator.gen_helpers import tree_digest, write_tiny
+from tests.simulator.dataset.gen_helpers import tree_digest, write_tiny
 
 
 def _evids(*args, env=None):

@@ -15,8 +15,16 @@ import torch
 
 import degradations
 from degradations import REGISTRY, DegradationError
-
-from tests.degradations.conftest import SR, audio, iq, moving_clip, rgb_clip, spec_db, target_mask, thermal_clip
+from tests.degradations.conftest import (
+    SR,
+    audio,
+    iq,
+    moving_clip,
+    rgb_clip,
+    spec_db,
+    target_mask,
+    thermal_clip,
+)
 
 
 def _psnr_rgb(x, y):

@@ -5,8 +5,15 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from degradations.schedule import (PROGRAMS, ConstantSchedule, Event, RampSchedule, RandomSchedule,
-                                   StepSchedule, conflict_program)
+from degradations.schedule import (
+    PROGRAMS,
+    ConstantSchedule,
+    Event,
+    RampSchedule,
+    RandomSchedule,
+    StepSchedule,
+    conflict_program,
+)
 
 
 def test_step_events_exact_half_open_intervals():

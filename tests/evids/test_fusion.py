@@ -16,7 +16,6 @@ from evids.fusion import (
     discounted_belief_fusion,
     yager,
 )
-from evids.heads import belief_masses
 
 D = torch.float64
 A1 = torch.tensor([[3.0, 1.0]], dtype=D)  # e=[2,0], S=4: b=[1/2, 0], u=1/2

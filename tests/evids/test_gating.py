@@ -3,7 +3,13 @@ import pytest
 import torch
 
 from evids.fusion import dempster_shafer
-from evids.gating import GateParams, HysteresisGate, simulate_gate, subset_fusion_table, sweep_gates
+from evids.gating import (
+    GateParams,
+    HysteresisGate,
+    simulate_gate,
+    subset_fusion_table,
+    sweep_gates,
+)
 
 LOW = 0.05  # a second modality that is always confident, so the "one modality on" rule stays idle
 

@@ -4,7 +4,13 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from evids.losses import annealing_coefficient, bce_loss, ce_loss, dirichlet_kl_uniform, edl_loss
+from evids.losses import (
+    annealing_coefficient,
+    bce_loss,
+    ce_loss,
+    dirichlet_kl_uniform,
+    edl_loss,
+)
 
 
 def test_kl_exactly_zero_at_alpha_one():

@@ -1,8 +1,8 @@
 import pytest
 import yaml
 
-from evids.errors import UserInputError
 from scenes import load_scenario, preset_names, scenario_from_dict, scenario_to_yaml
+from scenes.errors import UserInputError
 
 REQUIRED_PRESETS = {"clear_day_quad", "dusk_crossover", "low_elevation_haze", "bird_confuser",
                     "fixed_wing_pass", "swarm_3", "out_of_view"}

@@ -4,11 +4,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from evids.errors import UserInputError
-from evids.experiments.config import DEMO_CONFIG, QUICK_CONFIG, NoiseEntry, load_experiment_config
+from evids.experiments.config import (
+    DEMO_CONFIG,
+    QUICK_CONFIG,
+    NoiseEntry,
+    SplitConfig,
+    load_experiment_config,
+)
 from evids.experiments.data import ClipArrays, split_clips
-from evids.experiments.config import SplitConfig
-from evids.experiments.noise import conflict_clip, db_to_image, degrade_clip, image_to_db, item_seed
+from evids.experiments.noise import (
+    conflict_clip,
+    db_to_image,
+    degrade_clip,
+    image_to_db,
+    item_seed,
+)
+from scenes.errors import UserInputError
 
 
 def test_example_config_validates_and_bad_generation_config_is_named():
@@ -43,7 +54,7 @@ def _clip(label: int = 0, s: int = 4, seed: int = 0) -> ClipArrays:
     fs = 8000.0
     t = np.arange(int(s * 0.25 * fs)) / fs
     audio = (0.3 * np.sin(2 * np.pi * 440 * t) + 0.01 * rng.standard_normal(t.size)).astype(np.float32)
-    from simulator.trident import mfcc_segments
+    from simulator.formats.trident import mfcc_segments
 
     return ClipArrays(clip_id=f"c{seed}", label=label, mfcc=mfcc_segments(audio, fs, s),
                       video=rng.integers(60, 200, (s, 7, 112, 112, 3)).astype(np.uint8),

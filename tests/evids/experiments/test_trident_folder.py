@@ -1,4 +1,4 @@
-"""A TRIDENT-layout folder written by the exporter (simulator.trident.generate_trident), stripped
+"""A TRIDENT-layout folder written by the exporter (simulator.dataset.trident.generate_trident), stripped
 to what the public release carries (no labels/, rf_iq/, manifest), trains and evaluates through
 the same CLI path as generated data; bad input exits 2 and writes nothing."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
-from simulator.trident import generate_trident
+from simulator.dataset.trident import generate_trident
 
 
 def _evids(*args):

@@ -1,0 +1,426 @@
+"""Generation configs (scenes/generation/*.yaml): a weighted mixture of scenarios, randomisation
+ranges, dataset size and splits; and the per-sequence randomised scenario they produce.
+
+Every draw for sequence k comes from ``rng_for(seed, "generation", k, stream)`` so adding a
+randomised parameter never shifts the others, and the split of sequence k depends only on
+``split_seed`` and the number of sequences.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from scenes.loader import GENERATION_DIR
+from scenes.schema import Flyby, Hover, Orbit, Scenario, Target, Waypoints
+from simulator.seeding import rng_for
+
+SPLITS = ("train", "val", "test")
+DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
+DISTRACTOR_KINDS = ("bird", "airliner")
+
+# sub-streams of the "generation" stream per sequence (never renumber: it would change datasets)
+_S_PRESET, _S_SEED, _S_TARGET, _S_TRAJ, _S_SUN, _S_AIR, _S_PARTS, _S_CAMERA, _S_DISTRACT = range(1, 10)
+_SPLIT_TAG = 1000
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Range(_Model):
+    """Uniform range [min, max] (equal ends = a fixed value)."""
+
+    min: float
+    max: float
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_pair(cls, data: Any) -> Any:
+        if isinstance(data, (list, tuple)):
+            if len(data) != 2:
+                raise ValueError(f"a range is [min, max], got {list(data)}")
+            return {"min": data[0], "max": data[1]}
+        if isinstance(data, (int, float)) and not isinstance(data, bool):
+            return {"min": data, "max": data}
+        return data
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "Range":
+        if not (math.isfinite(self.min) and math.isfinite(self.max)) or self.min > self.max:
+            raise ValueError(f"need finite min <= max, got [{self.min}, {self.max}]")
+        return self
+
+    def draw(self, rng: np.random.Generator) -> float:
+        return float(self.min + (self.max - self.min) * rng.random())
+
+
+class MixtureEntry(_Model):
+    """One scenario source: a preset name or a scenario YAML path, with a relative weight."""
+
+    scenario: str = Field(min_length=1)
+    weight: float = Field(default=1.0, gt=0.0)
+
+
+TrajectoryKind = Literal["hover", "flyby", "orbit", "waypoints"]
+
+
+class Randomisation(_Model):
+    """Ranges applied on top of each mixture scenario; a field left null keeps the preset's value.
+
+    ``range_m``/``trajectory_kinds`` replace the primary drone's trajectory (the camera then tracks
+    it and its field of view is set so the drone spans ``target_px`` pixels on the RGB camera).
+    """
+
+    target_kinds: list[Literal["quadcopter", "hexacopter", "fixed_wing"]] | None = Field(default=None, min_length=1)
+    target_size_scale: Range | None = None
+    range_m: Range | None = None
+    trajectory_kinds: list[TrajectoryKind] | None = Field(default=None, min_length=1)
+    speed_mps: Range = Field(default_factory=lambda: Range(min=3.0, max=12.0))
+    target_px: Range = Field(default_factory=lambda: Range(min=8.0, max=20.0))
+    elevation_deg: Range = Field(default_factory=lambda: Range(min=3.0, max=15.0),
+                                 description="elevation of the drone above the horizon seen from the camera")
+    sun_elevation_deg: Range | None = None
+    sun_azimuth_deg: Range | None = None
+    time_of_day_h: Range | None = Field(default=None, description="UTC hour at latitude_deg/longitude_deg")
+    date: str = Field(default="2024-06-21", pattern=r"^\d{4}-\d{2}-\d{2}$")
+    latitude_deg: float = Field(default=48.0, ge=-90.0, le=90.0)
+    longitude_deg: float = Field(default=11.0, ge=-180.0, le=180.0)
+    air_temperature_k: Range | None = None
+    relative_humidity: Range | None = None
+    visibility_m: Range | None = None
+    part_temperature_offset_k: Range | None = Field(default=None, description="added to every part offset")
+    camera_yaw_deg: Range | None = Field(default=None, description="thermal-to-RGB yaw offset")
+    camera_pitch_deg: Range | None = Field(default=None, description="thermal-to-RGB pitch offset")
+    camera_translation_m: Range | None = Field(default=None, description="thermal-to-RGB baseline along x")
+    distractors: tuple[Annotated[int, Field(ge=0, le=10)], Annotated[int, Field(ge=0, le=10)]] = (0, 0)
+    distractor_kinds: list[Literal["bird", "airliner"]] = Field(default_factory=lambda: ["bird"], min_length=1)
+
+    @model_validator(mode="after")
+    def _checks(self) -> "Randomisation":
+        if self.distractors[0] > self.distractors[1]:
+            raise ValueError(f"distractors must be [min, max] with min <= max, got {list(self.distractors)}")
+        if self.time_of_day_h is not None and (self.sun_elevation_deg is not None or self.sun_azimuth_deg is not None):
+            raise ValueError("give either time_of_day_h or sun_elevation_deg/sun_azimuth_deg, not both")
+        for name in ("range_m", "visibility_m"):
+            value = getattr(self, name)
+            if value is not None and value.min <= 0:
+                raise ValueError(f"{name} must be > 0, got [{value.min}, {value.max}]")
+        if self.time_of_day_h is not None and (self.time_of_day_h.min < 0 or self.time_of_day_h.max > 24):
+            raise ValueError(f"time_of_day_h must lie in [0, 24], got [{self.time_of_day_h.min}, {self.time_of_day_h.max}]")
+        if self.relative_humidity is not None and (self.relative_humidity.min < 0 or self.relative_humidity.max > 1):
+            raise ValueError("relative_humidity must lie in [0, 1]")
+        if self.sun_elevation_deg is not None and (self.sun_elevation_deg.min < -90 or self.sun_elevation_deg.max > 90):
+            raise ValueError("sun_elevation_deg must lie in [-90, 90]")
+        for name in ("speed_mps", "target_px", "target_size_scale"):
+            value = getattr(self, name)
+            if value is not None and value.min <= 0:
+                raise ValueError(f"{name} must be > 0, got [{value.min}, {value.max}]")
+        return self
+
+
+class Splits(_Model):
+    train: float = Field(default=0.8, ge=0.0, le=1.0)
+    val: float = Field(default=0.1, ge=0.0, le=1.0)
+    test: float = Field(default=0.1, ge=0.0, le=1.0)
+    seed: int = Field(default=0, ge=0, description="fixed split seed, independent of the render seed")
+
+    @model_validator(mode="after")
+    def _sum(self) -> "Splits":
+        total = self.train + self.val + self.test
+        if abs(total - 1.0) > 1e-6:
+            raise ValueError(f"train + val + test must be 1, got {total:g}")
+        return self
+
+
+class GenerationConfig(_Model):
+    """A dataset recipe (scenes/generation/<name>.yaml)."""
+
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
+    description: str = ""
+    mixture: list[MixtureEntry] = Field(min_length=1)
+    randomise: Randomisation = Field(default_factory=Randomisation)
+    sequences: int = Field(default=10, ge=1, le=1_000_000)
+    frames: int = Field(default=25, ge=1, le=100_000, description="frames per sequence")
+    frame_rate_hz: float | None = Field(default=None, gt=0.0, le=240.0, description="null keeps each scenario's")
+    image_size: tuple[Annotated[int, Field(ge=16, le=4096)], Annotated[int, Field(ge=16, le=4096)]] = (320, 256)
+    thermal_image_size: tuple[Annotated[int, Field(ge=16, le=4096)], Annotated[int, Field(ge=16, le=4096)]] | None = None
+    spp: int = Field(default=4, ge=1, le=1024)
+    splits: Splits = Field(default_factory=Splits)
+
+
+def load_generation_config(config_or_name: str | Path | dict | GenerationConfig) -> GenerationConfig:
+    """A config object, a mapping, a YAML path or a preset in scenes/generation/; a scene preset
+    name (scenes/library/) gives that scenario with its default randomisation."""
+    from scenes.errors import UserInputError
+    from scenes.loader import LIBRARY_DIR, load_validated
+
+    if isinstance(config_or_name, GenerationConfig):
+        return config_or_name
+    if isinstance(config_or_name, (str, Path)):
+        text = str(config_or_name)
+        plain = not Path(text).suffix and "/" not in text and not Path(text).exists()
+        if plain and not (GENERATION_DIR / f"{text}.yaml").is_file() and (LIBRARY_DIR / f"{text}.yaml").is_file():
+            return GenerationConfig(name=text, mixture=[MixtureEntry(scenario=text)], randomise=default_randomisation())
+    if isinstance(config_or_name, (str, Path)):
+        text = str(config_or_name)
+        path = GENERATION_DIR / f"{text}.yaml" if not Path(text).suffix and "/" not in text else Path(text)
+        if path.is_file():
+            import yaml
+
+            try:
+                data = yaml.safe_load(path.read_text())
+            except yaml.YAMLError:
+                data = None
+            if isinstance(data, dict) and "clips" in data and "mixture" not in data:
+                raise UserInputError(f"{text!r} is a TRIDENT clip config: use `evids generate {text} --format trident`")
+    return load_validated(config_or_name, GenerationConfig, GENERATION_DIR, "generation config")
+
+
+def default_randomisation() -> Randomisation:
+    """What a bare scene preset gets: weather, light, part temperatures, camera offsets; the
+    preset's own targets, trajectories and camera."""
+    return Randomisation(
+        sun_elevation_deg=Range(min=10.0, max=60.0), sun_azimuth_deg=Range(min=0.0, max=360.0),
+        air_temperature_k=Range(min=275.0, max=303.0), relative_humidity=Range(min=0.3, max=0.8),
+        visibility_m=Range(min=8000.0, max=30000.0), part_temperature_offset_k=Range(min=-2.0, max=2.0),
+        camera_yaw_deg=Range(min=-0.05, max=0.05), camera_pitch_deg=Range(min=-0.05, max=0.05))
+
+
+# --------------------------------------------------------------------------------------------
+# Per-sequence plan
+# --------------------------------------------------------------------------------------------
+
+def split_assignment(splits: Splits, n: int) -> list[str]:
+    """Split of each of n sequences: exact largest-remainder counts, order shuffled by splits.seed."""
+    fractions = np.array([splits.train, splits.val, splits.test])
+    raw = fractions * n
+    counts = np.floor(raw).astype(int)
+    remainder = n - int(counts.sum())
+    order = sorted(range(3), key=lambda i: (-(raw[i] - counts[i]), i))
+    for i in order[:remainder]:
+        counts[i] += 1
+    labels = [name for name, c in zip(SPLITS, counts) for _ in range(int(c))]
+    perm = rng_for(splits.seed, "generation", _SPLIT_TAG, n).permutation(n)
+    return [labels[int(j)] for j in np.argsort(perm)]
+
+
+def sequence_name(index: int) -> str:
+    return f"seq{index + 1:06d}"
+
+
+def sequence_seed(seed: int, index: int) -> int:
+    """Render seed of sequence ``index`` (independent per sequence)."""
+    return int(rng_for(seed, "generation", index, _S_SEED).integers(0, 2 ** 31 - 1))
+
+
+def choose_source(config: GenerationConfig, seed: int, index: int) -> str:
+    weights = np.array([m.weight for m in config.mixture], dtype=np.float64)
+    k = int(rng_for(seed, "generation", index, _S_PRESET).choice(len(weights), p=weights / weights.sum()))
+    return config.mixture[k].scenario
+
+
+def _load_source(source: str, base_dir: Path | None) -> Scenario:
+    from scenes.loader import load_scenario
+
+    path = Path(source)
+    if base_dir is not None and path.suffix and not path.is_absolute() and not path.exists():
+        candidate = base_dir / path
+        if candidate.exists():
+            return load_scenario(candidate)
+    return load_scenario(source)
+
+
+def _primary_index(targets: list[Target]) -> int:
+    for i, t in enumerate(targets):
+        if t.kind in DRONE_KINDS:
+            return i
+    return 0
+
+
+def _direction(bearing_deg: float, elevation_deg: float) -> np.ndarray:
+    """Unit vector, bearing clockwise from +y (north) toward +x (east), elevation above horizon."""
+    b, e = math.radians(bearing_deg), math.radians(elevation_deg)
+    return np.array([math.sin(b) * math.cos(e), math.cos(b) * math.cos(e), math.sin(e)])
+
+
+def _trajectory(kind: str, centre: np.ndarray, speed: float, duration_s: float, rng: np.random.Generator):
+    heading = rng.uniform(0.0, 2 * math.pi)
+    horiz = np.array([math.cos(heading), math.sin(heading), 0.0])
+    c = tuple(round(float(v), 3) for v in centre)
+    if kind == "hover":
+        return Hover(center_m=c, drift_m=round(float(rng.uniform(0.2, 1.0)), 3))
+    if kind == "flyby":
+        climb = float(rng.uniform(-0.1, 0.1))
+        velocity = speed * horiz + np.array([0.0, 0.0, climb * speed])
+        start = centre - velocity * duration_s / 2
+        return Flyby(start_m=tuple(round(float(v), 3) for v in start), velocity_mps=tuple(round(float(v), 3) for v in velocity))
+    if kind == "orbit":
+        radius = float(rng.uniform(5.0, 25.0))
+        return Orbit(center_m=c, radius_m=round(radius, 3), speed_mps=round(speed, 3), clockwise=bool(rng.random() < 0.5),
+                     start_angle_deg=round(float(rng.uniform(0, 360)), 3))
+    spread = max(2.0, speed * duration_s / 3)
+    points = [tuple(round(float(v), 3) for v in centre + rng.uniform(-1, 1, 3) * np.array([spread, spread, spread / 4]))
+              for _ in range(4)]
+    return Waypoints(points_m=points, speed_mps=round(speed, 3))
+
+
+def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_dir: Path | None = None) -> tuple[str, Scenario]:
+    """(mixture source, scenario) of sequence ``index``: the chosen scenario with every configured
+    range drawn, resized to the config's image size and frame count, named ``seq<index+1>``."""
+    source = choose_source(config, seed, index)
+    base = _load_source(source, base_dir)
+    r = config.randomise
+    data = base.model_dump(mode="python")
+    frame_rate = config.frame_rate_hz or base.frame_rate_hz
+    duration = config.frames / frame_rate
+    data.update(name=sequence_name(index), duration_s=duration, frame_rate_hz=frame_rate, seed=None)
+    targets = data["targets"]
+    p = _primary_index(base.targets)
+
+    rng = rng_for(seed, "generation", index, _S_TARGET)
+    kind_draw, size_draw = rng.random(), rng.random()
+    if r.target_kinds is not None and targets[p]["kind"] in DRONE_KINDS:
+        new_kind = r.target_kinds[min(int(kind_draw * len(r.target_kinds)), len(r.target_kinds) - 1)]
+        if new_kind != targets[p]["kind"]:
+            targets[p]["kind"] = new_kind
+            targets[p]["thermal"]["offsets_k"] = {}
+            targets[p]["thermal"]["offsets_end_k"] = None
+            targets[p]["materials"] = {}
+            targets[p]["size_m"] = {"quadcopter": 0.45, "hexacopter": 0.9, "fixed_wing": 2.0}[new_kind]
+    if r.target_size_scale is not None:
+        lo, hi = r.target_size_scale.min, r.target_size_scale.max
+        targets[p]["size_m"] = round(targets[p]["size_m"] * (lo + (hi - lo) * size_draw), 4)
+
+    rig = data["camera_rig"]
+    cam_pos = np.asarray(rig["position_m"], dtype=np.float64)
+    if r.range_m is not None or r.trajectory_kinds is not None:
+        rng = rng_for(seed, "generation", index, _S_TRAJ)
+        if r.range_m is not None:
+            distance = r.range_m.draw(rng)
+        else:
+            distance = float(np.linalg.norm(np.asarray(_trajectory_anchor(base.targets[p])) - cam_pos))
+            rng.random()
+        kinds = r.trajectory_kinds or ["hover", "flyby", "orbit", "waypoints"]
+        kind = kinds[int(rng.integers(0, len(kinds)))]
+        bearing = float(rng.uniform(-30.0, 30.0))
+        elevation = r.elevation_deg.draw(rng)
+        speed = r.speed_mps.draw(rng)
+        centre = cam_pos + distance * _direction(bearing, elevation)
+        centre[2] = max(centre[2], cam_pos[2] + 5.0)
+        targets[p]["trajectory"] = _trajectory(kind, centre, speed, duration, rng).model_dump(mode="python")
+        width = config.image_size[0]
+        hfov = math.degrees(targets[p]["size_m"] / distance * width / r.target_px.draw(rng))
+        hfov = float(min(60.0, max(0.5, hfov)))
+        ratio = base.camera_rig.thermal.hfov_deg / base.camera_rig.rgb.hfov_deg
+        rig["track_target"] = targets[p]["name"]
+        rig["look_at_m"] = None
+        rig["rgb"]["hfov_deg"] = round(hfov, 4)
+        rig["thermal"]["hfov_deg"] = round(min(60.0, hfov * ratio), 4)
+
+    rng = rng_for(seed, "generation", index, _S_SUN)
+    if r.time_of_day_h is not None:
+        hour = r.time_of_day_h.draw(rng)
+        hh, mm = int(hour), int(round((hour - int(hour)) * 60))
+        if mm == 60:
+            hh, mm = hh + 1, 0
+        stamp = f"{r.date}T{min(hh, 23):02d}:{mm if hh < 24 else 59:02d}:00+00:00"
+        data["sky"]["sun"] = {"datetime_utc": stamp, "latitude_deg": r.latitude_deg, "longitude_deg": r.longitude_deg}
+    elif r.sun_elevation_deg is not None or r.sun_azimuth_deg is not None:
+        sun = data["sky"]["sun"]
+        if sun.get("elevation_deg") is None:
+            sun = {"elevation_deg": 35.0, "azimuth_deg": 135.0}
+        if r.sun_elevation_deg is not None:
+            sun["elevation_deg"] = round(r.sun_elevation_deg.draw(rng), 4)
+        if r.sun_azimuth_deg is not None:
+            sun["azimuth_deg"] = round(r.sun_azimuth_deg.draw(rng), 4)
+        data["sky"]["sun"] = {"elevation_deg": sun["elevation_deg"], "azimuth_deg": sun["azimuth_deg"]}
+
+    rng = rng_for(seed, "generation", index, _S_AIR)
+    air = data["atmosphere"]
+    for field, rounding in (("air_temperature_k", 3), ("relative_humidity", 4), ("visibility_m", 1)):
+        value = getattr(r, field)
+        draw = rng.random()
+        if value is not None:
+            air[field] = round(value.min + (value.max - value.min) * draw, rounding)
+
+    if r.part_temperature_offset_k is not None:
+        rng = rng_for(seed, "generation", index, _S_PARTS)
+        from scenes.assets import ROLES
+        from scenes.defaults import offset_for
+
+        for t_data in targets:
+            delta = r.part_temperature_offset_k.draw(rng)
+            thermal = t_data["thermal"]
+            if thermal["mode"] == "offset":
+                probe = Target.model_validate(t_data)
+                thermal["offsets_k"] = {role: round(offset_for(probe, role) + delta, 4) for role in ROLES}
+                if thermal.get("offsets_end_k") is not None:
+                    thermal["offsets_end_k"] = {role: round(offset_for(probe, role, end=True) + delta, 4)
+                                                for role in ROLES}
+            elif thermal["mode"] == "match_background":
+                thermal["contrast_k"] = round(thermal["contrast_k"] + delta, 4)
+                if thermal.get("contrast_end_k") is not None:
+                    thermal["contrast_end_k"] = round(thermal["contrast_end_k"] + delta, 4)
+
+    rng = rng_for(seed, "generation", index, _S_CAMERA)
+    off = rig["thermal_offset"]
+    draws = rng.random(3)
+    if r.camera_yaw_deg is not None:
+        off["yaw_deg"] = round(off["yaw_deg"] + r.camera_yaw_deg.min + (r.camera_yaw_deg.max - r.camera_yaw_deg.min) * draws[0], 5)
+    if r.camera_pitch_deg is not None:
+        off["pitch_deg"] = round(off["pitch_deg"] + r.camera_pitch_deg.min
+                                 + (r.camera_pitch_deg.max - r.camera_pitch_deg.min) * draws[1], 5)
+    if r.camera_translation_m is not None:
+        tx = r.camera_translation_m.min + (r.camera_translation_m.max - r.camera_translation_m.min) * draws[2]
+        off["translation_m"] = (round(tx, 5), off["translation_m"][1], off["translation_m"][2])
+
+    rng = rng_for(seed, "generation", index, _S_DISTRACT)
+    n_extra = int(rng.integers(r.distractors[0], r.distractors[1] + 1))
+    if n_extra:
+        anchor = np.asarray(_trajectory_anchor(Target.model_validate(targets[p])), dtype=np.float64)
+        to_target = anchor - cam_pos
+        dist = float(np.linalg.norm(to_target))
+        bearing0 = math.degrees(math.atan2(to_target[0], to_target[1]))
+        elev0 = math.degrees(math.asin(to_target[2] / max(dist, 1e-9)))
+        half = 0.3 * (rig["rgb"]["hfov_deg"] if rig["look_at_m"] is None else base.camera_rig.rgb.hfov_deg)
+        names = {t["name"] for t in targets}
+        for j in range(n_extra):
+            kind = r.distractor_kinds[int(rng.integers(0, len(r.distractor_kinds)))]
+            b = bearing0 + float(rng.uniform(-half, half))
+            e = elev0 + float(rng.uniform(-half, half) * 0.8)
+            if kind == "bird":
+                d = dist * float(rng.uniform(0.4, 0.9))
+                size, speed = float(rng.uniform(0.3, 0.8)), float(rng.uniform(4.0, 10.0))
+            else:
+                d = float(rng.uniform(3000.0, 9000.0))
+                size, speed = float(rng.uniform(30.0, 60.0)), float(rng.uniform(100.0, 220.0))
+            centre = cam_pos + d * _direction(b, e)
+            centre[2] = max(centre[2], cam_pos[2] + 3.0)
+            traj = _trajectory("flyby", centre, speed, duration, rng)
+            name = f"distractor{j + 1}"
+            while name in names:
+                name += "_"
+            names.add(name)
+            targets.append({"name": name, "kind": kind, "size_m": round(size, 3), "trajectory": traj.model_dump(mode="python"),
+                            "wingbeat_hz": round(float(rng.uniform(2.5, 6.0)), 3) if kind == "bird" else 4.0})
+
+    w, h = config.image_size
+    tw, th = config.thermal_image_size or config.image_size
+    rig["rgb"].update(width_px=w, height_px=h, spp=config.spp)
+    rig["thermal"].update(width_px=tw, height_px=th, spp=config.spp)
+    from scenes.loader import scenario_from_dict
+
+    return source, scenario_from_dict(data, source=f"{config.name}: sequence {index}")
+
+
+def _trajectory_anchor(target: Target) -> tuple[float, float, float]:
+    traj = target.trajectory
+    if isinstance(traj, (Hover, Orbit)):
+        return traj.center_m
+    if isinstance(traj, Flyby):
+        return traj.start_m
+    return tuple(np.mean(np.asarray(traj.points_m), axis=0).tolist())

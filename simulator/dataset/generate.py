@@ -1,0 +1,478 @@
+"""Generate a native dataset from a generation config: resumable, local process pool or Ray.
+
+Layout (docs/DATASETS.md)::
+
+    DIR/manifest.json             resolved config, seed, versions, per-sequence seed/split/hash
+    DIR/sequences/seq000001/      native layout (docs/NATIVE_FORMAT.md), renamed into place whole
+    DIR/<format>/                 optional exports (antiuav, antiuav_rgbt, mot, coco)
+
+The manifest is written first with ``"complete": false`` and no hashes (so a resumed run can check
+it is the same dataset), and rewritten at the end with the hashes; it holds no timestamps, so an
+interrupted-and-resumed run ends byte-identical to an uninterrupted one.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+from scenes.errors import UserInputError
+from simulator.dataset.config import (
+    GenerationConfig,
+    load_generation_config,
+    randomised_scenario,
+    sequence_name,
+    sequence_seed,
+    split_assignment,
+)
+from simulator.files import HASH_FILE, verify_hashes
+
+MANIFEST = "manifest.json"
+SEQUENCES_DIR = "sequences"
+DATASET_FORMAT = "evids-native-dataset"
+EXPORT_FORMATS = ("antiuav", "antiuav_rgbt", "mot", "coco")
+EXECUTORS = ("local", "ray")
+
+
+class GenerationFailed(RuntimeError):
+    """Some sequences failed; the others are complete and intact. ``failures`` maps name -> message."""
+
+    def __init__(self, failures: dict[str, str]):
+        self.failures = dict(failures)
+        lines = [f"{len(failures)} sequence(s) failed (the others are complete; re-run to retry):"]
+        lines += [f"  {name}: {msg}" for name, msg in sorted(failures.items())]
+        super().__init__("\n".join(lines))
+
+
+@dataclass
+class GenerationResult:
+    out_dir: Path
+    rendered: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    exports: dict[str, Path] = field(default_factory=dict)
+
+
+def _canonical(data: Any) -> str:
+    return json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
+def plan_dataset(config: GenerationConfig, seed: int, base_dir: Path | None = None) -> list[dict[str, Any]]:
+    """One task per sequence: name, index, mixture source, render seed, split, resolved scenario."""
+    splits = split_assignment(config.splits, config.sequences)
+    tasks = []
+    for index in range(config.sequences):
+        source, scenario = randomised_scenario(config, seed, index, base_dir)
+        tasks.append({"index": index, "name": sequence_name(index), "source": source, "seed": sequence_seed(seed, index),
+                      "split": splits[index], "n_frames": config.frames, "scenario": scenario.model_dump(mode="json")})
+    return tasks
+
+
+def dataset_identity(config: GenerationConfig, seed: int, tasks: list[dict[str, Any]]) -> str:
+    """sha256 over the resolved config, seed and every sequence's scenario/seed/split."""
+    return hashlib.sha256(_canonical({"config": config.model_dump(mode="json"), "seed": int(seed),
+                                      "tasks": tasks}).encode()).hexdigest()
+
+
+def sequence_hash(sequence_dir: Path) -> str:
+    """Content hash of a native sequence: sha256 of its files.sha256 (what write_hashes returns)."""
+    return hashlib.sha256((Path(sequence_dir) / HASH_FILE).read_bytes()).hexdigest()
+
+
+def _manifest(config: GenerationConfig, seed: int, tasks: list[dict[str, Any]], identity: str,
+              hashes: dict[str, str] | None) -> dict[str, Any]:
+    from simulator.files import package_versions
+
+    sequences = []
+    for t in tasks:
+        sequences.append({"name": t["name"], "index": t["index"], "source": t["source"], "seed": t["seed"],
+                          "split": t["split"], "n_frames": t["n_frames"],
+                          "content_sha256": None if hashes is None else hashes[t["name"]]})
+    return {
+        "format": DATASET_FORMAT, "format_version": 1, "dataset_id": identity, "complete": hashes is not None,
+        "config": config.model_dump(mode="json"), "seed": int(seed), "versions": package_versions(),
+        "splits": {s: [t["name"] for t in tasks if t["split"] == s] for s in ("train", "val", "test")},
+        "sequences": sequences,
+    }
+
+
+def write_manifest(out_dir: Path, manifest: dict[str, Any]) -> None:
+    """Atomic: write a temporary file, then rename over manifest.json."""
+    tmp = out_dir / f".{MANIFEST}.tmp-{os.getpid()}"
+    tmp.write_text(json.dumps(manifest, sort_keys=True, indent=1, allow_nan=False) + "\n")
+    os.replace(tmp, out_dir / MANIFEST)
+
+
+def load_manifest(dataset_dir: Path) -> dict[str, Any]:
+    path = Path(dataset_dir) / MANIFEST
+    if not path.is_file():
+        raise UserInputError(f"{dataset_dir} is not an evids dataset (no {MANIFEST})")
+    try:
+        manifest = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise UserInputError(f"{path}: not valid JSON: {exc}") from None
+    if manifest.get("format") != DATASET_FORMAT:
+        raise UserInputError(f"{path}: format is {manifest.get('format')!r}, expected {DATASET_FORMAT!r}")
+    return manifest
+
+
+def _sequence_ok(seq_dir: Path, task: dict[str, Any], recorded_hash: str | None) -> bool:
+    if not (seq_dir / "meta.json").is_file() or verify_hashes(seq_dir):
+        return False
+    try:
+        meta = json.loads((seq_dir / "meta.json").read_text())
+    except json.JSONDecodeError:
+        return False
+    if meta.get("seed") != task["seed"] or meta.get("n_frames") != task["n_frames"]:
+        return False
+    return recorded_hash is None or sequence_hash(seq_dir) == recorded_hash
+
+
+def _clean_stale(folder: Path) -> None:
+    """Remove temporary folders/files of killed runs (hidden .tmp-*/.old-*/.native-*)."""
+    if not folder.is_dir():
+        return
+    for child in folder.iterdir():
+        if child.name.startswith((".tmp-", ".old-", ".native-", f".{MANIFEST}.tmp-")):
+            if child.is_dir():
+                shutil.rmtree(child, ignore_errors=True)
+            else:
+                child.unlink(missing_ok=True)
+
+
+# --------------------------------------------------------------------------------------------
+# The task (runs in a worker process, a Ray worker, or in-process)
+# --------------------------------------------------------------------------------------------
+
+def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = None) -> dict[str, Any]:
+    """Render one sequence; never raises: returns {"name", "hash"} or {"name", "error"}."""
+    try:
+        from scenes.schema import Scenario
+        from simulator.dataset.sequence import render_sequence
+
+        if threads is not None:
+            from simulator.render.mitsuba_setup import load_mitsuba
+
+            load_mitsuba()
+            import drjit as dr
+
+            dr.set_thread_count(int(threads))
+            import cv2
+
+            cv2.setNumThreads(int(threads))
+        scenario = Scenario.model_validate(task["scenario"])
+        cpu0 = time.process_time()
+        written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False)
+        return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
+                "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid()}
+    except Exception as exc:  # reported per sequence by the driver; other sequences continue
+        last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+        where = f" at {Path(last.filename).name}:{last.lineno}" if last else ""
+        return {"name": task["name"], "error": f"{type(exc).__name__}: {exc}{where}"}
+
+
+def _peak_rss_mb() -> float:
+    """Peak resident memory of this process in MB (Linux reports KB, macOS bytes)."""
+    import resource
+    import sys
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
+
+
+def _threads_per_worker(workers: int) -> int:
+    return max(1, (os.cpu_count() or 1) // max(1, workers))
+
+
+def _run_local(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int,
+               on_done: Callable[[dict[str, Any]], None], force_pool: bool = False) -> None:
+    if workers <= 1 and not force_pool:
+        for task in tasks:
+            on_done(render_task(task, str(sequences_dir)))
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
+    threads = 1 if force_pool else _threads_per_worker(workers)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method))
+    try:
+        futures = {pool.submit(render_task, t, str(sequences_dir), threads): t["name"] for t in tasks}
+        for future in as_completed(futures):
+            try:
+                on_done(future.result())
+            except BrokenProcessPool as exc:
+                on_done({"name": futures[future], "error": f"worker process died ({exc})"})
+    except BaseException:
+        # Ctrl-C: stop the workers now (their hidden temporaries are removed by the next run) and
+        # start none of the queued sequences. (ProcessPoolExecutor has no public terminate before 3.14.)
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            proc.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _run_ray(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int, address: str | None,
+             on_done: Callable[[dict[str, Any]], None]) -> None:
+    try:
+        import ray
+    except ImportError:
+        raise UserInputError("--executor ray needs Ray: pip install 'evids[ray]'") from None
+    started = False
+    if not ray.is_initialized():
+        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
+        if address:
+            kwargs["address"] = address
+        else:
+            kwargs["num_cpus"] = max(1, workers)
+        ray.init(**kwargs)
+        started = True
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=0)(render_task)
+        threads = 1 if address else _threads_per_worker(workers)
+        pending = {remote.remote(t, str(sequences_dir), threads): t["name"] for t in tasks}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                name = pending.pop(ref)
+                try:
+                    on_done(ray.get(ref))
+                except Exception as exc:  # a crashed Ray worker fails only its own sequence
+                    on_done({"name": name, "error": f"Ray task failed: {type(exc).__name__}: {exc}"})
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def run_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, *, workers: int = 1, executor: str = "local",
+              ray_address: str | None = None, progress: bool = True, label: str = "generate",
+              force_pool: bool = False) -> dict[str, dict[str, Any]]:
+    """Run render tasks on the chosen executor with a driver-side progress bar; results by name.
+
+    Local with one worker renders in-process (Dr.Jit uses every core); ``force_pool`` uses a
+    one-process pool with 1 Dr.Jit thread per worker instead (for scaling benchmarks)."""
+    results: dict[str, dict[str, Any]] = {}
+    bar = task_id = None
+    if progress and tasks:
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TextColumn("elapsed"), TimeElapsedColumn(),
+                       TextColumn("eta"), TimeRemainingColumn())
+        task_id = bar.add_task("sequences", total=len(tasks))
+        bar.start()
+
+    def on_done(result: dict[str, Any]) -> None:
+        results[result["name"]] = result
+        if bar is not None:
+            bar.advance(task_id)
+
+    try:
+        if executor == "local":
+            _run_local(tasks, sequences_dir, workers, on_done, force_pool)
+        elif executor == "ray":
+            _run_ray(tasks, sequences_dir, workers, ray_address, on_done)
+        else:
+            raise UserInputError(f"--executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
+    finally:
+        if bar is not None:
+            bar.stop()
+    return results
+
+
+# --------------------------------------------------------------------------------------------
+# Driver
+# --------------------------------------------------------------------------------------------
+
+def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_dir: str | Path, seed: int, *,
+                     sequences: int | None = None, frames: int | None = None, workers: int = 1,
+                     executor: str = "local", ray_address: str | None = None, formats: Iterable[str] = ("native",),
+                     overwrite: bool = False, progress: bool = True) -> GenerationResult:
+    """Generate (or finish) the dataset in ``out_dir``; see the module docstring.
+
+    Sequences already present and intact are kept; missing or corrupt ones are (re)rendered. An
+    ``out_dir`` holding a different dataset is refused unless ``overwrite``. Raises
+    :class:`GenerationFailed` naming the failed sequences (the rest stay complete).
+    """
+    if seed < 0:
+        raise UserInputError(f"--seed must be >= 0, got {seed}")
+    if workers < 1:
+        raise UserInputError(f"--workers must be >= 1, got {workers}")
+    if executor not in EXECUTORS:
+        raise UserInputError(f"--executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
+    formats = tuple(formats)
+    bad = [f for f in formats if f != "native" and f not in EXPORT_FORMATS]
+    if bad:
+        raise UserInputError(f"--format: unknown format(s) {bad}; valid: native, {', '.join(EXPORT_FORMATS)}")
+    config = load_generation_config(config_or_name)
+    base_dir = Path(config_or_name).resolve().parent if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file() else None
+    updates: dict[str, Any] = {}
+    if sequences is not None:
+        updates["sequences"] = sequences
+    if frames is not None:
+        updates["frames"] = frames
+    if updates:
+        from scenes.loader import validate_mapping
+
+        config = validate_mapping(GenerationConfig, {**config.model_dump(mode="json"), **updates}, "command line")
+    tasks = plan_dataset(config, seed, base_dir)
+    identity = dataset_identity(config, seed, tasks)
+
+    out = Path(out_dir)
+    recorded: dict[str, str] = {}
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        if not (out / MANIFEST).is_file():
+            raise UserInputError(f"output folder {str(out)!r} is not empty and holds no evids dataset; choose another --out")
+        try:
+            old = json.loads((out / MANIFEST).read_text())
+        except json.JSONDecodeError:
+            old = {}
+        if old.get("dataset_id") != identity:
+            if not overwrite:
+                raise UserInputError(
+                    f"output folder {str(out)!r} holds a different dataset (manifest {MANIFEST} was made from another "
+                    "config, seed, --sequences or --frames); use a new --out, or --overwrite to replace it")
+            shutil.rmtree(out)
+        else:
+            recorded = {s["name"]: s["content_sha256"] for s in old.get("sequences", []) if s.get("content_sha256")}
+    out.mkdir(parents=True, exist_ok=True)
+    seq_root = out / SEQUENCES_DIR
+    seq_root.mkdir(exist_ok=True)
+    _clean_stale(out)
+    _clean_stale(seq_root)
+    write_manifest(out, _manifest(config, seed, tasks, identity, None))
+
+    wanted = {t["name"] for t in tasks}
+    for child in seq_root.iterdir():
+        if child.is_dir() and child.name not in wanted:
+            shutil.rmtree(child)
+    todo = [t for t in tasks if not _sequence_ok(seq_root / t["name"], t, recorded.get(t["name"]))]
+    result = GenerationResult(out_dir=out, skipped=[t["name"] for t in tasks if t not in todo])
+    results = run_tasks(todo, seq_root, workers=workers, executor=executor, ray_address=ray_address,
+                        progress=progress, label=f"generate {config.name}")
+    failures = {name: r["error"] for name, r in results.items() if "error" in r}
+    missing = [t["name"] for t in todo if t["name"] not in results]
+    failures.update({name: "no result from the executor" for name in missing})
+    if failures:
+        raise GenerationFailed(failures)
+    result.rendered = [t["name"] for t in todo]
+    hashes = {t["name"]: sequence_hash(seq_root / t["name"]) for t in tasks}
+    write_manifest(out, _manifest(config, seed, tasks, identity, hashes))
+    for fmt in formats:
+        if fmt != "native":
+            result.exports[fmt] = export_dataset(out, fmt, out / fmt, progress=progress)
+    return result
+
+
+# --------------------------------------------------------------------------------------------
+# Verify and export
+# --------------------------------------------------------------------------------------------
+
+@dataclass
+class VerifyReport:
+    checked: int = 0
+    missing: list[str] = field(default_factory=list)
+    corrupt: dict[str, list[str]] = field(default_factory=dict)
+    incomplete: bool = False
+
+    @property
+    def ok(self) -> bool:
+        return not self.missing and not self.corrupt and not self.incomplete
+
+
+def verify_dataset(dataset_dir: str | Path, *, progress: bool = False) -> VerifyReport:
+    """Re-hash every sequence against its files.sha256 and the manifest's content hash."""
+    root = Path(dataset_dir)
+    manifest = load_manifest(root)
+    report = VerifyReport(incomplete=not manifest.get("complete", False))
+    entries = manifest["sequences"]
+    if progress:
+        from rich.progress import track
+
+        entries = track(entries, description="verify")
+    for entry in entries:
+        seq = root / SEQUENCES_DIR / entry["name"]
+        report.checked += 1
+        if not seq.is_dir():
+            report.missing.append(entry["name"])
+            continue
+        bad = verify_hashes(seq)
+        if not bad and entry.get("content_sha256") and sequence_hash(seq) != entry["content_sha256"]:
+            bad = [HASH_FILE]
+        if bad:
+            report.corrupt[entry["name"]] = bad
+    return report
+
+
+def dataset_sequences(dataset_dir: str | Path) -> list[dict[str, Any]]:
+    """Manifest entries of a complete dataset, each with its ``path``."""
+    root = Path(dataset_dir)
+    manifest = load_manifest(root)
+    if not manifest.get("complete"):
+        raise UserInputError(f"{root}: the dataset is incomplete; re-run `evids generate` with the same arguments")
+    return [{**e, "path": root / SEQUENCES_DIR / e["name"]} for e in manifest["sequences"]]
+
+
+def export_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, annotate_every: int = 1,
+                   distractors: bool | None = None, progress: bool = True) -> Path:
+    """Export a complete native dataset to ``fmt`` (antiuav, antiuav_rgbt, mot, coco) under ``out_dir``;
+    written to a temporary sibling and renamed, so a failure leaves ``out_dir`` as it was.
+
+    ``distractors`` (birds, aircraft): default off for mot (exactly MM-UAV), on for coco (flagged
+    categories); Anti-UAV is single-object (the first drone) either way."""
+    from simulator.files import atomic_folder
+
+    if fmt not in EXPORT_FORMATS:
+        raise UserInputError(f"--format must be one of {', '.join(EXPORT_FORMATS)}, got {fmt!r}")
+    if annotate_every < 1:
+        raise UserInputError(f"--annotate-every must be >= 1, got {annotate_every}")
+    entries = dataset_sequences(dataset_dir)
+    out = Path(out_dir)
+    with atomic_folder(out) as tmp:
+        if fmt == "antiuav":
+            from simulator.formats.antiuav import export_antiuav
+
+            for e in _track(entries, progress, "export antiuav"):
+                export_antiuav(e["path"], tmp / e["split"], e["name"])
+        elif fmt == "antiuav_rgbt":
+            from simulator.formats.antiuav import export_antiuav_rgbt
+
+            for e in _track(entries, progress, "export antiuav_rgbt"):
+                export_antiuav_rgbt(e["path"], tmp / e["split"], e["name"])
+        elif fmt == "mot":
+            from simulator.formats.mot import export_mmuav
+
+            for e in _track(entries, progress, "export mot"):
+                export_mmuav(e["path"], tmp / e["split"], mmuav_number(e["index"]), annotate_every=annotate_every,
+                             distractors=bool(distractors))
+        else:
+            from simulator.formats.coco import export_coco
+
+            export_coco(entries, tmp, distractors=distractors is not False, progress=progress)
+    return out
+
+
+def mmuav_number(index: int) -> str:
+    """MM-UAV sequence folder name of dataset sequence ``index`` (0-based): 0001, 0002, ..."""
+    return f"{index + 1:04d}"
+
+
+def _track(items: list, progress: bool, label: str) -> Iterable:
+    if not progress:
+        return items
+    from rich.progress import track
+
+    return track(items, description=label)

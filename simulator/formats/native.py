@@ -1,0 +1,74 @@
+"""The native per-sequence layout (documented in docs/NATIVE_FORMAT.md): writer and reader.
+
+Files are written deterministically (sorted JSON keys, rounded floats, fixed PNG settings) so the
+same scenario and seed give byte-identical folders. A sequence is written into a temporary sibling
+folder and renamed into place only when complete.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+FORMAT_VERSION = 1
+
+
+def frame_name(index0: int, ext: str) -> str:
+    """Native and Anti-UAV frame files are 1-based, 6 digits: 000001.png."""
+    return f"{index0 + 1:06d}.{ext}"
+
+
+def write_png(path: Path, image: np.ndarray) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if image.ndim == 3:
+        image = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
+    if not cv2.imwrite(str(path), image, [cv2.IMWRITE_PNG_COMPRESSION, 3]):
+        raise OSError(f"could not write {path}")
+
+
+def write_jpeg(path: Path, image: np.ndarray, quality: int = 95) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if image.ndim == 3:
+        image = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
+    if not cv2.imwrite(str(path), image, [cv2.IMWRITE_JPEG_QUALITY, quality]):
+        raise OSError(f"could not write {path}")
+
+
+def read_image(path: Path) -> np.ndarray:
+    """Read PNG/JPEG unchanged (16-bit stays 16-bit); colour images come back as RGB."""
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise OSError(f"could not read image {path}")
+    if image.ndim == 3:
+        image = cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+    return image
+
+
+def write_json(path: Path, data) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, sort_keys=True, indent=1, allow_nan=False) + "\n")
+
+
+def load_meta(sequence_dir: Path) -> dict:
+    return json.loads((Path(sequence_dir) / "meta.json").read_text())
+
+
+def load_labels(sequence_dir: Path) -> dict:
+    return json.loads((Path(sequence_dir) / "labels.json").read_text())
+
+
+def load_thermal_kelvin(sequence_dir: Path, index0: int) -> np.ndarray:
+    """float32 radiometric temperature of frame index0 (0-based) from the 16-bit counts."""
+    meta = load_meta(sequence_dir)
+    counts = read_image(Path(sequence_dir) / "thermal" / frame_name(index0, "png"))
+    return counts.astype(np.float32) * np.float32(meta["cameras"]["thermal"]["kelvin_per_count"])
+
+
+def load_rgb(sequence_dir: Path, index0: int) -> np.ndarray:
+    return read_image(Path(sequence_dir) / "rgb" / frame_name(index0, "png"))
+
+
+def load_mask(sequence_dir: Path, camera: str, index0: int) -> np.ndarray:
+    return read_image(Path(sequence_dir) / "masks" / camera / frame_name(index0, "png"))

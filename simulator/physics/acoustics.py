@@ -1,0 +1,550 @@
+"""Audio on the scenario timeline: source signatures, outdoor propagation and ambient beds.
+
+Everything is pressure in pascals at the microphone (mono, 44.1 kHz by default). Sources are
+synthesised on their own clock (emission time) and reach the microphone through
+:func:`retarded_time` (propagation delay and Doppler), spherical spreading (1/r re 1 m) and
+ISO 9613-1 atmospheric absorption applied as a time-varying STFT-domain gain. Ambient beds (wind,
+traffic, rain, birdsong) are synthesised directly at the microphone. All draws come from
+``rng_for(seed, "acoustics", ...)`` with one index per source, so adding a source never changes
+another one. See docs/AUDIO_RF.md for the models and their parameters.
+"""
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.fft as sfft
+from numpy.lib.stride_tricks import sliding_window_view
+from pydantic import BaseModel, ConfigDict, Field
+
+from simulator.seeding import rng_for
+
+AUDIO_SAMPLE_RATE_HZ = 44_100
+AUDIO_BAND_HZ = 16_000.0          # highest frequency any model synthesises; fs must be >= 2x this
+P_REF_PA = 20e-6                  # reference pressure of dB SPL
+FULL_SCALE_PA = 1.0               # WAV sample 1.0 == 1 Pa (94 dB SPL)
+MIN_RANGE_M = 1.0                 # source levels are quoted at 1 m; closer is clamped
+ABSORPTION_FRAME = 2048           # STFT frame (46 ms at 44.1 kHz) for the absorption filter
+ABSORPTION_HOP = ABSORPTION_FRAME // 2
+_GRID_STEP_S = 1e-3               # emission-time grid used to invert t = tau + r(tau)/c
+AMBIENT_SOURCE_INDEX = 1000       # rng index base of ambient beds (targets use 0, 1, ...)
+MOTOR_POLE_PAIRS = 7              # 12N14P outrunner: electrical frequency = 7 x shaft rate
+N_BLADE_HARMONICS = 10
+
+MULTIROTOR_KINDS = ("quadcopter", "hexacopter")
+DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
+
+# source levels at 1 m (dB SPL) for the reference size; see docs/AUDIO_RF.md
+_TONAL_DB_1M = {"quadcopter": 78.0, "hexacopter": 81.0, "fixed_wing": 80.0}
+_BROADBAND_DB_1M = {"quadcopter": 72.0, "hexacopter": 75.0, "fixed_wing": 74.0}
+_REFERENCE_SIZE_M = {"quadcopter": 0.45, "hexacopter": 0.8, "fixed_wing": 1.5}
+BIRD_CALL_DB_1M = 80.0
+BIRD_WINGBEAT_DB_1M = 55.0
+AIRLINER_DB_1M = 140.0
+
+
+def _check_nonnegative(name: str, values: np.ndarray) -> None:
+    values = np.asarray(values)
+    if values.size and (not np.all(np.isfinite(values)) or np.min(values) < 0):
+        raise ValueError(f"{name} must be finite and >= 0, got min {np.nanmin(values):.6g}")
+
+
+def check_sample_rate(sample_rate_hz: float, highest_band_hz: float = AUDIO_BAND_HZ) -> None:
+    """Reject a sample rate that cannot carry the highest synthesised band (Nyquist)."""
+    if not sample_rate_hz >= 2.0 * highest_band_hz:
+        raise ValueError(f"sample_rate_hz must be >= 2 x highest band ({2 * highest_band_hz:.0f} Hz), got {sample_rate_hz}")
+
+
+def db_spl_to_pa(level_db: float) -> float:
+    return P_REF_PA * 10.0 ** (level_db / 20.0)
+
+
+def pa_to_db_spl(rms_pa: np.ndarray | float) -> np.ndarray:
+    return 20.0 * np.log10(np.maximum(np.asarray(rms_pa, dtype=np.float64), 1e-12) / P_REF_PA)
+
+
+# --------------------------------------------------------------------------------------------
+# Atmosphere
+# --------------------------------------------------------------------------------------------
+
+def speed_of_sound_mps(air_temperature_k: float) -> float:
+    """Ideal-gas speed of sound in dry air, 331.3 m/s at 273.15 K."""
+    if not air_temperature_k > 0:
+        raise ValueError(f"air_temperature_k must be > 0, got {air_temperature_k}")
+    return 331.3 * float(np.sqrt(air_temperature_k / 273.15))
+
+
+def iso9613_absorption_db_per_m(frequency_hz: np.ndarray | float, air_temperature_k: float,
+                                relative_humidity: float, pressure_pa: float = 101_325.0) -> np.ndarray:
+    """Pure-tone atmospheric absorption coefficient (dB/m), ISO 9613-1:1993 equations (1)-(5).
+
+    ``relative_humidity`` is a fraction (0-1) as in the scenario schema.
+    """
+    f = np.asarray(frequency_hz, dtype=np.float64)
+    _check_nonnegative("frequency_hz", f)
+    if not 0.0 <= relative_humidity <= 1.0:
+        raise ValueError(f"relative_humidity must be a fraction in [0, 1], got {relative_humidity}")
+    if not pressure_pa > 0:
+        raise ValueError(f"pressure_pa must be > 0, got {pressure_pa}")
+    t = float(air_temperature_k)
+    if not t > 0:
+        raise ValueError(f"air_temperature_k must be > 0, got {t}")
+    pr_kpa, t0, t01 = 101.325, 293.15, 273.16
+    pa_rel = (pressure_pa / 1000.0) / pr_kpa
+    c_exp = -6.8346 * (t01 / t) ** 1.261 + 4.6151
+    h = 100.0 * relative_humidity * 10.0 ** c_exp / pa_rel          # molar concentration of water vapour, %
+    fr_o = pa_rel * (24.0 + 4.04e4 * h * (0.02 + h) / (0.391 + h))
+    fr_n = pa_rel * (t / t0) ** -0.5 * (9.0 + 280.0 * h * np.exp(-4.170 * ((t / t0) ** (-1.0 / 3.0) - 1.0)))
+    return 8.686 * f ** 2 * (
+        1.84e-11 / pa_rel * (t / t0) ** 0.5
+        + (t / t0) ** -2.5 * (0.01275 * np.exp(-2239.1 / t) / (fr_o + f ** 2 / fr_o)
+                              + 0.1068 * np.exp(-3352.0 / t) / (fr_n + f ** 2 / fr_n)))
+
+
+# --------------------------------------------------------------------------------------------
+# Propagation
+# --------------------------------------------------------------------------------------------
+
+@dataclass
+class Retarded:
+    """Emission time ``tau_s`` of the sound heard at each microphone sample, its rate and range."""
+
+    tau_s: np.ndarray        # (N,) emission time
+    dtau_dt: np.ndarray      # (N,) = 1 / (1 + dr/dtau / c): the Doppler factor f_rx / f_src
+    range_m: np.ndarray      # (N,) source-microphone distance at emission
+
+
+def _extrapolated(times_s: np.ndarray, frame_times_s: np.ndarray, values: np.ndarray,
+                  rates: np.ndarray) -> np.ndarray:
+    """Per-axis linear interpolation inside the frame range, linear extrapolation outside it."""
+    out = np.stack([np.interp(times_s, frame_times_s, values[:, k]) for k in range(values.shape[1])], -1)
+    before, after = times_s < frame_times_s[0], times_s > frame_times_s[-1]
+    out[before] = values[0] + (times_s[before] - frame_times_s[0])[:, None] * rates[0]
+    out[after] = values[-1] + (times_s[after] - frame_times_s[-1])[:, None] * rates[-1]
+    return out
+
+
+def retarded_time(rx_times_s: np.ndarray, frame_times_s: np.ndarray, source_position_m: np.ndarray,
+                  source_velocity_mps: np.ndarray, mic_position_m: np.ndarray,
+                  speed_of_sound: float) -> Retarded:
+    """Solve t = tau + r(tau)/c for every microphone time t (source positions per frame).
+
+    The source is extrapolated with its first/last velocity outside the frame range (sound heard
+    at t = 0 left the source before the first frame). The microphone is taken at its position at
+    the emission time (it is static or slow in every scenario).
+    """
+    rx = np.asarray(rx_times_s, dtype=np.float64)
+    frame_t = np.asarray(frame_times_s, dtype=np.float64)
+    pos = np.asarray(source_position_m, dtype=np.float64).reshape(-1, 3)
+    vel = np.asarray(source_velocity_mps, dtype=np.float64).reshape(-1, 3)
+    mic = np.broadcast_to(np.asarray(mic_position_m, dtype=np.float64).reshape(-1, 3), pos.shape)
+    if frame_t.size == 1:  # a single frame: static extrapolation with its velocity
+        frame_t = np.array([frame_t[0], frame_t[0] + 1.0])
+        pos = np.vstack([pos, pos + vel])
+        vel = np.vstack([vel, vel])
+        mic = np.vstack([mic, mic])
+    if not speed_of_sound > 0:
+        raise ValueError(f"speed_of_sound must be > 0, got {speed_of_sound}")
+    max_speed = float(np.max(np.linalg.norm(vel, axis=-1)))
+    if max_speed >= speed_of_sound:
+        raise ValueError(f"source_velocity_mps: {max_speed:.1f} m/s is at or above the speed of sound")
+    max_delay = float(np.max(np.linalg.norm(pos - mic, axis=-1))) / speed_of_sound
+    lo = rx[0] - (max_delay + 1.0) / (1.0 - max_speed / speed_of_sound)
+    hi = rx[-1] + 0.1
+    grid = np.arange(lo, hi + _GRID_STEP_S, _GRID_STEP_S)
+    src = _extrapolated(grid, frame_t, pos, vel)
+    mic_g = _extrapolated(grid, frame_t, mic, np.zeros_like(mic))
+    rng_m = np.linalg.norm(src - mic_g, axis=-1)
+    arrival = grid + rng_m / speed_of_sound
+    if np.any(np.diff(arrival) <= 0):
+        raise ValueError("source_velocity_mps: the source approaches at or above the speed of sound")
+    if rx[0] < arrival[0] or rx[-1] > arrival[-1]:
+        raise ValueError("rx_times_s fall outside the emission grid (source too far away)")
+    tau = np.interp(rx, arrival, grid)
+    rate = np.gradient(grid, arrival)            # d tau / d t on the grid
+    return Retarded(tau_s=tau, dtau_dt=np.interp(rx, arrival, rate), range_m=np.interp(tau, grid, rng_m))
+
+
+def _absorption_filter(x: np.ndarray, range_m: np.ndarray, sample_rate_hz: float,
+                       air_temperature_k: float, relative_humidity: float) -> np.ndarray:
+    """Time-varying ISO 9613-1 absorption: per-STFT-frame gain 10^(-alpha(f) r / 20).
+
+    sqrt-Hann analysis and synthesis windows at 50 % overlap reconstruct exactly with unit gain.
+    """
+    n = x.size
+    frame, hop = ABSORPTION_FRAME, ABSORPTION_HOP
+    padded = np.pad(x, (frame, frame + (-n) % hop))
+    window = np.sqrt(0.5 - 0.5 * np.cos(2 * np.pi * np.arange(frame) / frame))
+    frames = sliding_window_view(padded, frame)[::hop]
+    spec = sfft.rfft(frames * window, axis=-1)
+    freqs = np.fft.rfftfreq(frame, 1.0 / sample_rate_hz)
+    alpha = iso9613_absorption_db_per_m(freqs, air_temperature_k, relative_humidity)
+    centre = np.clip(np.arange(frames.shape[0]) * hop + frame // 2 - frame, 0, n - 1)
+    gain = 10.0 ** (-np.outer(range_m[centre], alpha) / 20.0)
+    out_frames = sfft.irfft(spec * gain, n=frame, axis=-1) * window
+    total = np.zeros(padded.size, dtype=np.float64)
+    blocks = total.reshape(-1, hop)
+    blocks[: out_frames.shape[0]] += out_frames[:, :hop]
+    blocks[1: out_frames.shape[0] + 1] += out_frames[:, hop:]
+    return total[frame: frame + n]
+
+
+def propagate(source_at_1m_pa: np.ndarray, range_m: np.ndarray, sample_rate_hz: float,
+              air_temperature_k: float, relative_humidity: float) -> np.ndarray:
+    """Spherical spreading (1/r re 1 m, range clamped to >= 1 m) and ISO 9613-1 absorption.
+
+    ``source_at_1m_pa`` is already on the microphone clock (delay and Doppler applied); ``range_m``
+    is the per-sample range at emission.
+    """
+    range_m = np.asarray(range_m, dtype=np.float64)
+    _check_nonnegative("range_m", range_m)
+    check_sample_rate(sample_rate_hz)
+    x = np.asarray(source_at_1m_pa, dtype=np.float64)
+    r = np.maximum(range_m, MIN_RANGE_M)
+    return _absorption_filter(x / r, r, sample_rate_hz, air_temperature_k, relative_humidity)
+
+
+# --------------------------------------------------------------------------------------------
+# Sources (pressure at 1 m, evaluated on the microphone clock through tau(t))
+# --------------------------------------------------------------------------------------------
+
+def _shaped_noise(rng: np.random.Generator, n: int, sample_rate_hz: float, low_hz: float, high_hz: float,
+                  slope_db_per_octave: float = 0.0) -> np.ndarray:
+    """Unit-RMS Gaussian noise band-passed (smooth 2nd-order edges) with an optional spectral tilt."""
+    n_fft = sfft.next_fast_len(n, real=True)
+    white = rng.standard_normal(n_fft)
+    f = np.fft.rfftfreq(n_fft, 1.0 / sample_rate_hz)
+    f_safe = np.maximum(f, 1e-3)
+    hp = (f_safe / low_hz) ** 2 / (1.0 + (f_safe / low_hz) ** 2) if low_hz > 0 else np.ones_like(f)
+    lp = 1.0 / (1.0 + (f_safe / high_hz) ** 4)
+    tilt = (f_safe / max(low_hz, 1.0)) ** (slope_db_per_octave / 6.0206)
+    shaped = sfft.irfft(sfft.rfft(white) * (hp * lp * np.minimum(tilt, 1e3)), n=n_fft)[:n]
+    rms = np.sqrt(np.mean(shaped ** 2))
+    return shaped / max(rms, 1e-30)
+
+
+def _smooth_random(rng: np.random.Generator, n: int, sample_rate_hz: float, corner_hz: float) -> np.ndarray:
+    """Zero-mean, unit-RMS noise low-passed at corner_hz (slow modulations: gusts, traffic)."""
+    step = max(1, int(sample_rate_hz / (20.0 * corner_hz)))
+    coarse = _shaped_noise(rng, n // step + 4, sample_rate_hz / step, 0.0, corner_hz)
+    return np.interp(np.arange(n) / step, np.arange(coarse.size), coarse)
+
+
+def _source_noise(rng: np.random.Generator, retarded: Retarded, sample_rate_hz: float, low_hz: float,
+                  high_hz: float, slope_db_per_octave: float = 0.0) -> np.ndarray:
+    """Shaped noise generated on the emission clock and resampled along tau(t) (Doppler, delay)."""
+    t0 = float(retarded.tau_s[0])
+    m = int(np.ceil((float(retarded.tau_s[-1]) - t0) * sample_rate_hz)) + 3
+    src = _shaped_noise(rng, m, sample_rate_hz, low_hz, high_hz, slope_db_per_octave)
+    return np.interp((retarded.tau_s - t0) * sample_rate_hz, np.arange(m), src)
+
+
+def _harmonic_poly(z: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
+    """Re(sum_p coeffs[..., p] z^p) by Horner's rule (z on the unit circle, complex64)."""
+    acc = np.broadcast_to(coeffs[:, -1:], z.shape).astype(np.complex64)
+    for p in range(coeffs.shape[1] - 2, -1, -1):
+        np.multiply(acc, z, out=acc)
+        if np.any(coeffs[:, p]):
+            acc += coeffs[:, p:p + 1]
+    return acc.real
+
+
+def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_rate_hz: float,
+                    rng: np.random.Generator, tonal_db_1m: float, broadband_db_1m: float,
+                    hover_rpm: float) -> np.ndarray:
+    """Pressure at 1 m of a set of rotors heard through ``retarded`` (microphone clock).
+
+    ``rpm`` (R, N) is each rotor's speed at the emission time of every microphone sample. Each
+    rotor gives blade-passing harmonics k x rpm/60 x n_blades (k = 1..10, amplitude ~ k^-0.8), a
+    shaft-rate imbalance line and motor electrical lines at 7 and 14 x the shaft rate; rotors with
+    slightly different RPM beat. Broadband turbulence is shaped noise modulated at the BPF.
+    Tonal level scales with thrust (rpm^2), broadband with rpm^2.5.
+    """
+    rpm = np.atleast_2d(np.asarray(rpm, dtype=np.float64))
+    if rpm.size and np.min(rpm) < 0:
+        raise ValueError(f"rotor_rpm must be >= 0, got min {np.min(rpm):.6g}")
+    if n_blades < 1:
+        raise ValueError(f"n_blades must be >= 1, got {n_blades}")
+    n_rotors, n = rpm.shape
+    shaft_hz_rx = rpm / 60.0 * retarded.dtau_dt[None, :]             # received shaft rate (Doppler)
+    phase = 2 * np.pi * np.cumsum(shaft_hz_rx, axis=1) / sample_rate_hz
+    phase += rng.uniform(0, 2 * np.pi, size=(n_rotors, 1))
+    phase32 = np.mod(phase, 2 * np.pi).astype(np.float32)
+    z = np.empty(phase32.shape, dtype=np.complex64)
+    z.real = np.cos(phase32)
+    z.imag = np.sin(phase32)
+    max_power = max(n_blades * N_BLADE_HARMONICS, 2 * MOTOR_POLE_PAIRS)
+    coeffs = np.zeros((n_rotors, max_power + 1), dtype=np.complex128)
+    k = np.arange(1, N_BLADE_HARMONICS + 1)
+    blade_amp = k ** -0.8 * 10 ** (rng.normal(0.0, 1.5, size=(n_rotors, k.size)) / 20)
+    coeffs[:, n_blades * k] = blade_amp * np.exp(1j * rng.uniform(0, 2 * np.pi, size=(n_rotors, k.size)))
+    coeffs[:, 1] += 0.18 * np.exp(1j * rng.uniform(0, 2 * np.pi, size=n_rotors))     # imbalance, -15 dB
+    coeffs[:, MOTOR_POLE_PAIRS] += 0.25 * np.exp(1j * rng.uniform(0, 2 * np.pi, size=n_rotors))
+    coeffs[:, 2 * MOTOR_POLE_PAIRS] += 0.12 * np.exp(1j * rng.uniform(0, 2 * np.pi, size=n_rotors))
+    # rms of sum_p |c_p| cos(.) per rotor = sqrt(sum |c|^2 / 2); scale so all rotors together give tonal_db_1m
+    per_rotor_rms = np.sqrt(np.sum(np.abs(coeffs) ** 2, axis=1) / 2)
+    coeffs *= db_spl_to_pa(tonal_db_1m) / np.sqrt(n_rotors) / per_rotor_rms[:, None]
+    # only powers of z that lie below Nyquist at the highest shaft rate are kept
+    max_shaft_hz = float(np.max(shaft_hz_rx)) if n else 0.0
+    if max_shaft_hz > 0:
+        keep = np.arange(max_power + 1) * max_shaft_hz < 0.45 * sample_rate_hz
+        coeffs[:, ~keep] = 0
+    thrust = (rpm / max(hover_rpm, 1e-9)) ** 2
+    tonal = np.sum(_harmonic_poly(z, coeffs.astype(np.complex64)) * thrust, axis=0, dtype=np.float64)
+    noise = _source_noise(rng, retarded, sample_rate_hz, 300.0, 6000.0, -3.0)
+    bpf_mod = 1.0 + 0.3 * np.real(z[0] ** n_blades)
+    broadband = noise * bpf_mod * np.mean(thrust, axis=0) ** 1.25 * db_spl_to_pa(broadband_db_1m)
+    return tonal + broadband
+
+
+def _chirp_events(rng: np.random.Generator, n: int, sample_rate_hz: float, rate_per_s: float,
+                  f_range_hz: tuple[float, float], dur_range_s: tuple[float, float]) -> np.ndarray:
+    """Poisson-timed frequency-swept calls with a 2nd harmonic and a Hann envelope (unit peak)."""
+    out = np.zeros(n)
+    count = rng.poisson(rate_per_s * n / sample_rate_hz)
+    starts = rng.integers(0, max(n, 1), size=count)
+    durations = rng.uniform(*dur_range_s, size=count)
+    f_start = rng.uniform(*f_range_hz, size=count)
+    f_end = f_start * rng.uniform(0.7, 1.4, size=count)
+    trill_hz = rng.uniform(10.0, 40.0, size=count)
+    for s0, dur, fa, fb, tr in zip(starts, durations, f_start, f_end, trill_hz):
+        m = int(dur * sample_rate_hz)
+        stop = min(n, s0 + m)
+        t = np.arange(stop - s0) / sample_rate_hz
+        inst = fa + (fb - fa) * t / dur + 0.08 * fa * np.sin(2 * np.pi * tr * t)
+        ph = 2 * np.pi * np.cumsum(inst) / sample_rate_hz
+        env = np.sin(np.pi * np.arange(stop - s0) / max(m, 1)) ** 2
+        out[s0:stop] += env * (np.sin(ph) + 0.3 * np.sin(2 * ph))
+    return out
+
+
+def bird_signature(wingbeat_hz: float, retarded: Retarded, sample_rate_hz: float,
+                   rng: np.random.Generator) -> np.ndarray:
+    """Pressure at 1 m of a bird: low-frequency wing-beat thumps at wingbeat_hz plus sporadic calls."""
+    if not wingbeat_hz > 0:
+        raise ValueError(f"wingbeat_hz must be > 0, got {wingbeat_hz}")
+    flap = 2 * np.pi * wingbeat_hz * retarded.tau_s
+    thump = _source_noise(rng, retarded, sample_rate_hz, 40.0, 400.0) * np.maximum(np.sin(flap), 0.0) ** 4
+    thump *= db_spl_to_pa(BIRD_WINGBEAT_DB_1M) / max(float(np.sqrt(np.mean(thump ** 2))), 1e-30)
+    t0 = float(retarded.tau_s[0])
+    m = int(np.ceil((float(retarded.tau_s[-1]) - t0) * sample_rate_hz)) + 3
+    calls_src = _chirp_events(rng, m, sample_rate_hz, 0.8, (2000.0, 5000.0), (0.08, 0.25))
+    calls = np.interp((retarded.tau_s - t0) * sample_rate_hz, np.arange(m), calls_src)
+    return thump + calls * db_spl_to_pa(BIRD_CALL_DB_1M) * np.sqrt(2)
+
+
+def airliner_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random.Generator) -> np.ndarray:
+    """Pressure at 1 m of a jet airliner: low-frequency broadband jet noise (peak ~100-300 Hz)."""
+    jet = _source_noise(rng, retarded, sample_rate_hz, 60.0, 400.0, -2.0)
+    return jet * db_spl_to_pa(AIRLINER_DB_1M)
+
+
+def target_source_levels(kind: str, size_m: float) -> tuple[float, float]:
+    """(tonal, broadband) dB SPL at 1 m of a drone kind, +20 log10 of size / reference size."""
+    gain = 20.0 * np.log10(size_m / _REFERENCE_SIZE_M[kind])
+    return _TONAL_DB_1M[kind] + gain, _BROADBAND_DB_1M[kind] + gain
+
+
+def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarray, n_samples: int,
+                      sample_rate_hz: float, air_temperature_k: float, relative_humidity: float,
+                      rng: np.random.Generator, wingbeat_hz: float = 4.0) -> tuple[np.ndarray, np.ndarray]:
+    """Received pressure (Pa) of one ``TargetTrack`` at the microphone, and its range per sample."""
+    from simulator.physics.timeline import rotor_hover_rpm
+
+    check_sample_rate(sample_rate_hz)
+    if n_samples < 1:
+        raise ValueError(f"n_samples must be >= 1, got {n_samples}")
+    c = speed_of_sound_mps(air_temperature_k)
+    rx_t = np.arange(n_samples) / sample_rate_hz + float(frame_times_s[0])
+    ret = retarded_time(rx_t, frame_times_s, track.position_m, track.velocity_mps, mic_position_m, c)
+    if track.kind in DRONE_KINDS:
+        rpm_frames = np.asarray(track.rotor_rpm, dtype=np.float64)
+        _check_nonnegative("rotor_rpm", rpm_frames)
+        rpm = np.stack([np.interp(ret.tau_s, frame_times_s, rpm_frames[:, r]) for r in range(rpm_frames.shape[1])])
+        tonal_db, broad_db = target_source_levels(track.kind, track.size_m)
+        src = rotor_signature(rpm, max(int(track.n_blades), 1), ret, sample_rate_hz, rng, tonal_db, broad_db,
+                              rotor_hover_rpm(track.kind, track.size_m))
+    elif track.kind == "bird":
+        src = bird_signature(wingbeat_hz, ret, sample_rate_hz, rng)
+    elif track.kind == "airliner":
+        src = airliner_signature(ret, sample_rate_hz, rng)
+    else:
+        raise ValueError(f"kind: unknown target kind {track.kind!r}")
+    return propagate(src, ret.range_m, sample_rate_hz, air_temperature_k, relative_humidity), ret.range_m
+
+
+# --------------------------------------------------------------------------------------------
+# Ambient beds
+# --------------------------------------------------------------------------------------------
+
+class Ambience(BaseModel):
+    """Ambient sound beds at the microphone; levels are dB SPL (RMS over the clip), None = off."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    wind_db: float | None = Field(default=45.0, ge=0.0, le=110.0)
+    gust_depth: float = Field(default=0.6, ge=0.0, le=1.0, description="0 steady, 1 strongly gusty")
+    traffic_db: float | None = Field(default=None, ge=0.0, le=110.0)
+    rain_db: float | None = Field(default=None, ge=0.0, le=110.0)
+    birdsong_db: float | None = Field(default=None, ge=0.0, le=110.0)
+
+
+def _scale_to(x: np.ndarray, level_db: float) -> np.ndarray:
+    return x * db_spl_to_pa(level_db) / max(float(np.sqrt(np.mean(x ** 2))), 1e-30)
+
+
+def wind_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float, gust_depth: float) -> np.ndarray:
+    """Wind on the microphone: red-tilted low-frequency noise with slow gust envelope (~0.3 Hz)."""
+    base = _shaped_noise(rng, n, sample_rate_hz, 15.0, 500.0, -6.0)
+    gust = np.exp(gust_depth * 1.2 * _smooth_random(rng, n, sample_rate_hz, 0.3))
+    return _scale_to(base * gust, level_db)
+
+
+def traffic_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
+    """Distant road traffic: rumble below ~300 Hz with vehicles passing (bell-shaped swells)."""
+    base = _shaped_noise(rng, n, sample_rate_hz, 30.0, 300.0, -3.0)
+    t = np.arange(n) / sample_rate_hz
+    duration = n / sample_rate_hz
+    passes = rng.uniform(-2.0, duration + 2.0, size=max(1, rng.poisson(0.5 * duration)))
+    widths = rng.uniform(1.5, 4.0, size=passes.size)
+    swell = 0.4 + np.sum(np.exp(-0.5 * ((t[None, :] - passes[:, None]) / widths[:, None]) ** 2), axis=0) \
+        if passes.size < 64 else np.ones(n)
+    return _scale_to(base * swell, level_db)
+
+
+def rain_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
+    """Rain: Poisson drop impacts (~1500 /s), each a 1-4 ms decaying high-passed noise burst."""
+    from scipy.signal import fftconvolve
+
+    count = rng.poisson(1500.0 * n / sample_rate_hz)
+    impulses = np.zeros(n)
+    np.add.at(impulses, rng.integers(0, n, size=count), rng.exponential(1.0, size=count))
+    k = int(0.004 * sample_rate_hz)
+    kernel = _shaped_noise(rng, k, sample_rate_hz, 1500.0, 12000.0) * np.exp(-np.arange(k) / (0.0015 * sample_rate_hz))
+    hiss = 0.3 * _shaped_noise(rng, n, sample_rate_hz, 2000.0, 10000.0)
+    return _scale_to(fftconvolve(impulses, kernel)[:n] + hiss * np.std(impulses) * np.sqrt(k) * 0.05, level_db)
+
+
+def birdsong_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
+    """Background birdsong: several birds' Poisson-timed chirps and trills, 2-7 kHz."""
+    calls = _chirp_events(rng, n, sample_rate_hz, 4.0, (2000.0, 7000.0), (0.05, 0.4))
+    if not np.any(calls):
+        return np.zeros(n)
+    return _scale_to(calls, level_db)
+
+
+def synthesize_ambience(ambience: Ambience, n_samples: int, sample_rate_hz: float, seed: int,
+                        *indices: int) -> dict[str, np.ndarray]:
+    """Each enabled bed (Pa at the microphone), from its own rng stream (seed, acoustics, *indices, 1000+k)."""
+    check_sample_rate(sample_rate_hz)
+    beds: dict[str, np.ndarray] = {}
+    if ambience.wind_db is not None:
+        beds["wind"] = wind_bed(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX), n_samples,
+                                sample_rate_hz, ambience.wind_db, ambience.gust_depth)
+    if ambience.traffic_db is not None:
+        beds["traffic"] = traffic_bed(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 1), n_samples,
+                                      sample_rate_hz, ambience.traffic_db)
+    if ambience.rain_db is not None:
+        beds["rain"] = rain_bed(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 2), n_samples,
+                                sample_rate_hz, ambience.rain_db)
+    if ambience.birdsong_db is not None:
+        beds["birdsong"] = birdsong_bed(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 3), n_samples,
+                                        sample_rate_hz, ambience.birdsong_db)
+    return beds
+
+
+# --------------------------------------------------------------------------------------------
+# Scene-level synthesis and output
+# --------------------------------------------------------------------------------------------
+
+@dataclass
+class AudioScene:
+    """Microphone pressure (Pa) of a scenario: the mix and every component kept separately."""
+
+    sample_rate_hz: float
+    mix_pa: np.ndarray                                   # (N,) float32
+    targets_pa: dict[str, np.ndarray] = field(default_factory=dict)   # target name -> (N,) float32
+    target_range_m: dict[str, np.ndarray] = field(default_factory=dict)
+    ambience_pa: dict[str, np.ndarray] = field(default_factory=dict)  # bed name -> (N,) float32
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.mix_pa.size)
+
+
+def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, duration_s: float | None = None,
+                     sample_rate_hz: float = AUDIO_SAMPLE_RATE_HZ, stream_indices: tuple[int, ...] = ()) -> AudioScene:
+    """Audio of every timeline target plus ambient beds at the microphone (the camera rig).
+
+    Target i draws from ``rng_for(seed, "acoustics", *stream_indices, i)``; beds from index 1000+k.
+    ``duration_s`` defaults to the timeline span plus one frame.
+    """
+    check_sample_rate(sample_rate_hz)
+    times = np.asarray(timeline.times_s, dtype=np.float64)
+    if duration_s is None:
+        step = float(times[1] - times[0]) if times.size > 1 else 1.0 / timeline.scenario.frame_rate_hz
+        duration_s = float(times[-1] - times[0]) + step
+    if not duration_s > 0:
+        raise ValueError(f"duration_s must be > 0, got {duration_s}")
+    n = int(round(duration_s * sample_rate_hz))
+    atm = timeline.scenario.atmosphere
+    wingbeats = {t.name: t.wingbeat_hz for t in timeline.scenario.targets}
+    mic = np.asarray(timeline.microphone_position_m, dtype=np.float64)
+    mix = np.zeros(n)
+    scene = AudioScene(sample_rate_hz=float(sample_rate_hz), mix_pa=np.zeros(0, np.float32))
+    for index, track in enumerate(timeline.targets):
+        rng = rng_for(seed, "acoustics", *stream_indices, index)
+        received, range_m = synthesize_target(track, times, mic, n, sample_rate_hz, atm.air_temperature_k,
+                                              atm.relative_humidity, rng, wingbeats.get(track.name, 4.0))
+        mix += received
+        scene.targets_pa[track.name] = received.astype(np.float32)
+        scene.target_range_m[track.name] = range_m.astype(np.float32)
+    for name, bed in synthesize_ambience(ambience or Ambience(), n, sample_rate_hz, seed, *stream_indices).items():
+        mix += bed
+        scene.ambience_pa[name] = bed.astype(np.float32)
+    scene.mix_pa = mix.astype(np.float32)
+    return scene
+
+
+def write_wav(path: str | Path, pressure_pa: np.ndarray, sample_rate_hz: float = AUDIO_SAMPLE_RATE_HZ,
+              full_scale_pa: float = FULL_SCALE_PA) -> Path:
+    """Mono 32-bit float WAV with sample = pressure / full_scale_pa (1.0 == 1 Pa by default)."""
+    import soundfile
+
+    check_sample_rate(sample_rate_hz)
+    if not full_scale_pa > 0:
+        raise ValueError(f"full_scale_pa must be > 0, got {full_scale_pa}")
+    path = Path(path)
+    data = (np.asarray(pressure_pa, dtype=np.float64) / full_scale_pa).astype(np.float32)
+    buffer = io.BytesIO()
+    soundfile.write(buffer, data, int(sample_rate_hz), subtype="FLOAT", format="WAV")
+    path.write_bytes(_zero_peak_timestamp(buffer.getvalue()))
+    return path
+
+
+def _zero_peak_timestamp(wav: bytes) -> bytes:
+    """libsndfile stamps float WAVs' PEAK chunk with the wall-clock time; zero it for byte-identical files."""
+    out = bytearray(wav)
+    pos = 12                                              # after 'RIFF' <size> 'WAVE'
+    while pos + 8 <= len(out):
+        chunk_id, size = bytes(out[pos:pos + 4]), int.from_bytes(out[pos + 4:pos + 8], "little")
+        if chunk_id == b"PEAK" and size >= 8:
+            out[pos + 12:pos + 16] = b"\0\0\0\0"          # version (4 bytes), then timestamp (4 bytes)
+            break
+        pos += 8 + size + (size & 1)
+    return bytes(out)
+
+
+def band_level_db(x_pa: np.ndarray, sample_rate_hz: float, low_hz: float, high_hz: float,
+                  segment_samples: int) -> np.ndarray:
+    """Per-segment band-limited RMS level (dB SPL) from an FFT of each segment (last partial dropped)."""
+    x = np.asarray(x_pa, dtype=np.float64)
+    n_seg = x.size // segment_samples
+    segs = x[: n_seg * segment_samples].reshape(n_seg, segment_samples)
+    spec = np.abs(sfft.rfft(segs, axis=-1)) ** 2
+    f = np.fft.rfftfreq(segment_samples, 1.0 / sample_rate_hz)
+    band = (f >= low_hz) & (f <= high_hz)
+    power = 2.0 * np.sum(spec[:, band], axis=-1) / segment_samples ** 2
+    return 10.0 * np.log10(np.maximum(power, 1e-30) / P_REF_PA ** 2)

@@ -1,0 +1,256 @@
+"""Scenario + seed -> Timeline: per-frame poses, velocities, attitude, rotor RPM and part temperatures.
+
+The timeline is the shared clock of every sensor: the renderer draws it, the acoustic and RF
+synthesisers sample it (``TargetTrack.position_at`` interpolates between frames).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from scenes.defaults import offset_for
+from scenes.schema import Scenario, Target
+from simulator.physics import thermal
+from simulator.physics.sky import ThermalSky
+from simulator.physics.trajectory import positions_m
+from simulator.seeding import rng_for
+
+GRAVITY_MPS2 = 9.81
+_DIFF_STEP_S = 1e-3
+MULTIROTOR_DRAG_PER_M = 0.02
+
+
+@dataclass
+class TargetTrack:
+    """One target over the sequence. Arrays are indexed by frame."""
+
+    target_id: int
+    name: str
+    kind: str
+    size_m: float
+    position_m: np.ndarray          # (F, 3)
+    velocity_mps: np.ndarray        # (F, 3)
+    rotation: np.ndarray            # (F, 3, 3) object->world; columns forward, left, up
+    rotor_rpm: np.ndarray           # (F, n_rotors)
+    rotor_angle_rad: np.ndarray     # (F,) integrated blade angle, for prop animation
+    flap_phase_rad: np.ndarray      # (F,) birds; zeros otherwise
+    part_temperature_k: dict[str, np.ndarray] = field(default_factory=dict)  # role -> (F,)
+    n_blades: int = 0
+
+    def position_at(self, times_s: np.ndarray, frame_times_s: np.ndarray) -> np.ndarray:
+        """Linear interpolation of position at arbitrary times (for audio/RF sample clocks)."""
+        return np.stack([np.interp(times_s, frame_times_s, self.position_m[:, k]) for k in range(3)], -1)
+
+
+@dataclass
+class CameraTrack:
+    """A camera's pose per frame: origin, viewing direction and up vector (world frame)."""
+
+    name: str
+    origin_m: np.ndarray    # (F, 3)
+    forward: np.ndarray     # (F, 3) unit
+    up: np.ndarray          # (F, 3) unit, orthogonal to forward
+    width_px: int
+    height_px: int
+    hfov_deg: float
+
+    @property
+    def focal_px(self) -> float:
+        return (self.width_px / 2) / np.tan(np.radians(self.hfov_deg) / 2)
+
+    def project(self, frame: int, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pinhole projection: pixel coordinates (x right, y down, pixel centres at +0.5) and depth."""
+        fwd, up = self.forward[frame], self.up[frame]
+        right = np.cross(fwd, up)
+        rel = np.atleast_2d(points_m) - self.origin_m[frame]
+        depth = rel @ fwd
+        safe = np.where(np.abs(depth) < 1e-9, 1e-9, depth)
+        x = self.width_px / 2 + self.focal_px * (rel @ right) / safe
+        y = self.height_px / 2 - self.focal_px * (rel @ up) / safe
+        return np.stack([x, y], -1), depth
+
+
+@dataclass
+class Timeline:
+    scenario: Scenario
+    seed: int
+    times_s: np.ndarray             # (F,)
+    targets: list[TargetTrack]
+    cameras: dict[str, CameraTrack]  # "rgb", "thermal"
+    microphone_position_m: np.ndarray  # (F, 3): at the camera rig
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.times_s.size)
+
+
+def rotor_hover_rpm(kind: str, size_m: float) -> float:
+    """Hover RPM scaled from a 0.45 m quad at 5500 rpm: rpm ~ size^-0.5 (larger props turn slower)."""
+    if kind in ("quadcopter", "hexacopter"):
+        return 5500.0 * (0.45 / size_m) ** 0.5
+    if kind == "fixed_wing":
+        return 7000.0 * (1.5 / size_m) ** 0.5
+    return 0.0
+
+
+def _rotor_count(kind: str) -> int:
+    return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1}.get(kind, 0)
+
+
+def _normalise(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n < 1e-12, 1.0, n)
+
+
+def _heading(velocity: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    """Unit horizontal heading per frame; keeps the last valid heading while hovering."""
+    horiz = velocity.copy()
+    horiz[:, 2] = 0
+    out = np.empty_like(horiz)
+    last = fallback
+    for i, h in enumerate(horiz):
+        n = np.linalg.norm(h)
+        if n > 0.3:
+            last = h / n
+        out[i] = last
+    return out
+
+
+def _attitude(kind: str, vel: np.ndarray, acc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation (F,3,3) and thrust/g ratio (F,) following the motion."""
+    z_world = np.array([0.0, 0.0, 1.0])
+    heading = _heading(vel, np.array([1.0, 0.0, 0.0]))
+    if kind in ("quadcopter", "hexacopter"):
+        speed = np.linalg.norm(vel, axis=-1, keepdims=True)
+        thrust = acc + GRAVITY_MPS2 * z_world + MULTIROTOR_DRAG_PER_M * vel * speed
+        up = _normalise(thrust)
+        forward = _normalise(heading - np.sum(heading * up, -1, keepdims=True) * up)
+        ratio = np.linalg.norm(thrust, axis=-1) / GRAVITY_MPS2
+    else:
+        forward = np.where(np.linalg.norm(vel, axis=-1, keepdims=True) > 0.3, _normalise(vel), heading)
+        left0 = _normalise(np.cross(z_world, forward))
+        up0 = np.cross(forward, left0)
+        horiz_speed = np.linalg.norm(vel[:, :2], axis=-1)
+        yaw_rate = (vel[:, 0] * acc[:, 1] - vel[:, 1] * acc[:, 0]) / np.maximum(horiz_speed ** 2, 1e-6)
+        bank = np.arctan2(horiz_speed * yaw_rate, GRAVITY_MPS2)
+        bank = np.clip(bank, -np.radians(60), np.radians(60))[:, None]
+        up = np.cos(bank) * up0 + np.sin(bank) * left0
+        ratio = 1.0 / np.cos(bank[:, 0])
+    left = np.cross(up, forward)
+    rotation = np.stack([forward, left, up], axis=-1)
+    return rotation, ratio
+
+
+def _part_roles(kind: str) -> tuple[str, ...]:
+    return {
+        "quadcopter": ("body", "arm", "motor", "prop", "battery", "camera"),
+        "hexacopter": ("body", "arm", "motor", "prop", "battery", "camera"),
+        "fixed_wing": ("fuselage", "wing", "tail", "motor", "prop", "body"),
+        "bird": ("body", "head", "wing", "feather"),
+        "airliner": ("fuselage", "wing", "tail", "engine"),
+    }[kind]
+
+
+def _part_temperatures(scenario: Scenario, target: Target, position: np.ndarray, rig_origin: np.ndarray,
+                       sky: ThermalSky, times_s: np.ndarray) -> dict[str, np.ndarray]:
+    from scenes.defaults import material_for
+
+    air_k = scenario.atmosphere.air_temperature_k
+    ramp = times_s / max(scenario.duration_s, 1e-9)
+    out: dict[str, np.ndarray] = {}
+    mode = target.thermal.mode
+    if mode == "match_background":
+        beta = thermal.lwir_extinction_per_m(scenario.atmosphere.visibility_m, scenario.atmosphere.relative_humidity)
+        rel = position - rig_origin
+        range_m = np.linalg.norm(rel, axis=-1)
+        background = sky.radiance(rel / range_m[:, None])
+        bg_bright_k = thermal.brightness_temperature(background)
+        end = target.thermal.contrast_end_k if target.thermal.contrast_end_k is not None else target.thermal.contrast_k
+        wanted_k = bg_bright_k + target.thermal.contrast_k + (end - target.thermal.contrast_k) * ramp
+        tau = thermal.transmission(range_m, beta)
+        surface_needed = (thermal.band_radiance(wanted_k) - (1 - tau) * sky.air_radiance) / tau
+        reflected = sky.reflected_radiance()
+        for role in _part_roles(target.kind):
+            eps = material_for(target, role).emissivity
+            out[role] = np.array([thermal.temperature_for_surface_radiance(r, eps, reflected) for r in surface_needed])
+        return out
+    for role in _part_roles(target.kind):
+        if mode == "absolute":
+            value = target.thermal.absolute_k.get(role, air_k)
+            out[role] = np.full(times_s.size, float(value))
+        else:
+            start, end = offset_for(target, role), offset_for(target, role, end=True)
+            out[role] = air_k + start + (end - start) * ramp
+    return out
+
+
+def _camera_tracks(scenario: Scenario, targets: list[TargetTrack], n_frames: int) -> dict[str, CameraTrack]:
+    rig = scenario.camera_rig
+    origin = np.tile(np.asarray(rig.position_m, dtype=np.float64), (n_frames, 1))
+    if rig.track_target is not None:
+        track = next(t for t in targets if t.name == rig.track_target)
+        aim = track.position_m
+    else:
+        aim = np.tile(np.asarray(rig.look_at_m, dtype=np.float64), (n_frames, 1))
+    forward = _normalise(aim - origin)
+    z_world = np.array([0.0, 0.0, 1.0])
+    right = _normalise(np.cross(forward, z_world))
+    up = np.cross(right, forward)
+    cams = {"rgb": CameraTrack("rgb", origin, forward, up, rig.rgb.width_px, rig.rgb.height_px, rig.rgb.hfov_deg)}
+    off = rig.thermal_offset
+    yaw, pitch, roll = np.radians([off.yaw_deg, off.pitch_deg, off.roll_deg])
+    # offset rotation in the camera frame (x right, y up, z back): yaw about y, pitch about x, roll about z
+    ry = np.array([[np.cos(yaw), 0, np.sin(yaw)], [0, 1, 0], [-np.sin(yaw), 0, np.cos(yaw)]])
+    rx = np.array([[1, 0, 0], [0, np.cos(pitch), -np.sin(pitch)], [0, np.sin(pitch), np.cos(pitch)]])
+    rz = np.array([[np.cos(roll), -np.sin(roll), 0], [np.sin(roll), np.cos(roll), 0], [0, 0, 1]])
+    r_off = ry @ rx @ rz
+    cam_to_world = np.stack([right, up, -forward], axis=-1)  # (F,3,3) columns x, y, z of the camera frame
+    t_origin = origin + cam_to_world @ np.asarray(off.translation_m)
+    t_rot = cam_to_world @ r_off
+    th = rig.thermal
+    cams["thermal"] = CameraTrack("thermal", t_origin, -t_rot[:, :, 2], t_rot[:, :, 1], th.width_px, th.height_px, th.hfov_deg)
+    return cams
+
+
+def build_timeline(scenario: Scenario, seed: int, n_frames: int | None = None) -> Timeline:
+    """Evaluate every target and camera at each frame time. ``n_frames`` truncates the sequence."""
+    total = scenario.n_frames
+    count = total if n_frames is None else int(n_frames)
+    if count < 1:
+        raise ValueError(f"n_frames must be >= 1, got {count}")
+    count = min(count, total)
+    times = np.arange(count) / scenario.frame_rate_hz
+    rig_origin = np.asarray(scenario.camera_rig.position_m, dtype=np.float64)
+    sky = ThermalSky(scenario.sky, scenario.atmosphere, seed)
+    tracks: list[TargetTrack] = []
+    h = _DIFF_STEP_S
+    for index, target in enumerate(scenario.targets):
+        rng = rng_for(seed, "trajectory", index)
+        stacked = positions_m(target.trajectory, np.concatenate([times, times - h, times + h]), rng)
+        pos, before, after = stacked[:count], stacked[count:2 * count], stacked[2 * count:]
+        vel = (after - before) / (2 * h)
+        acc = (after - 2 * pos + before) / h ** 2
+        if count > 2:
+            acc = np.stack([np.convolve(np.pad(acc[:, k], 2, mode="edge"), np.ones(5) / 5, mode="valid") for k in range(3)], -1)
+        rotation, thrust_ratio = _attitude(target.kind, vel, acc)
+        n_rotors = _rotor_count(target.kind)
+        hover = rotor_hover_rpm(target.kind, target.size_m)
+        if target.kind == "fixed_wing":
+            base_rpm = hover * np.sqrt(np.clip(np.linalg.norm(vel, axis=-1) / 15.0, 0.3, 3.0))
+        else:
+            base_rpm = hover * np.sqrt(np.clip(thrust_ratio, 0.2, 4.0))
+        detune = 1.0 + 0.01 * rng_for(seed, "rotor_detune", index).standard_normal(n_rotors)
+        rpm = base_rpm[:, None] * detune[None, :]
+        angle = np.concatenate([[0.0], np.cumsum(base_rpm[:-1] / 60.0 * 2 * np.pi / scenario.frame_rate_hz)])
+        flap = 2 * np.pi * target.wingbeat_hz * times if target.kind == "bird" else np.zeros(count)
+        track = TargetTrack(
+            target_id=index + 1, name=target.name, kind=target.kind, size_m=target.size_m,
+            position_m=pos, velocity_mps=vel, rotation=rotation, rotor_rpm=rpm, rotor_angle_rad=angle,
+            flap_phase_rad=flap, n_blades=2 if n_rotors else 0,
+        )
+        track.part_temperature_k = _part_temperatures(scenario, target, pos, rig_origin, sky, times)
+        tracks.append(track)
+    cameras = _camera_tracks(scenario, tracks, count)
+    return Timeline(scenario=scenario, seed=seed, times_s=times, targets=tracks, cameras=cameras,
+                    microphone_position_m=cameras["rgb"].origin_m.copy())

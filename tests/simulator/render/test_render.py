@@ -1,0 +1,132 @@
+"""Renderer properties on small images: contrast sign, crossover, tight boxes, exist flags,
+RGB/thermal registration, projection agreement, determinism and the Anti-UAV output."""
+import hashlib
+import json
+
+import numpy as np
+
+from scenes import load_scenario
+from scenes.schema import Hover
+from simulator.dataset.sequence import render_sequence
+from simulator.formats.antiuav import read_antiuav_labels
+from simulator.physics.timeline import build_timeline
+from simulator.render.labels import frame_labels, tight_box
+from simulator.render.renderer import SequenceRenderer
+from tests.conftest import shrink
+
+
+def _render_frames(scenario, seed, frames, n_frames=None):
+    timeline = build_timeline(scenario, seed, n_frames)
+    renderer = SequenceRenderer(timeline)
+    return timeline, {i: renderer.render_frame(i) for i in frames}
+
+
+def test_hot_drone_is_brighter_than_sky_in_thermal():
+    scenario = shrink(load_scenario("clear_day_quad"), 256, 208)
+    timeline, out = _render_frames(scenario, 7, [0])
+    fb = out[0]
+    labels = frame_labels(timeline, 0, "thermal", fb.mask_thermal, fb.thermal_kelvin, 0.05)
+    assert labels[0]["exist"] == 1
+    assert labels[0]["contrast_k"] > 1.0
+    target = fb.thermal_kelvin[fb.mask_thermal == 1]
+    assert target.max() > np.percentile(fb.thermal_kelvin[fb.mask_thermal == 0], 99.9)
+
+
+def test_dusk_crossover_contrast_passes_below_netd():
+    scenario = shrink(load_scenario("dusk_crossover"), 640, 512)
+    netd = scenario.camera_rig.thermal.netd_k
+    crossing = int(round(0.6 * (scenario.n_frames - 1)))
+    timeline, out = _render_frames(scenario, 11, [0, crossing, scenario.n_frames - 1])
+    contrast = {i: frame_labels(timeline, i, "thermal", fb.mask_thermal, fb.thermal_kelvin, netd)[0]
+                for i, fb in out.items()}
+    assert contrast[0]["contrast_k"] > 0.5
+    assert abs(contrast[crossing]["contrast_k"]) < netd
+    assert contrast[crossing]["crossover"] is True
+    assert contrast[scenario.n_frames - 1]["contrast_k"] < -0.3
+
+
+def test_box_is_the_tight_box_of_the_mask():
+    mask = np.zeros((20, 30), bool)
+    mask[5:9, 10:17] = True
+    mask[12, 3] = True
+    assert tight_box(mask) == [3, 5, 14, 8]
+    assert tight_box(np.zeros((4, 4), bool)) is None
+
+
+def test_rendered_box_matches_mask_and_projection():
+    scenario = shrink(load_scenario("swarm_3"), 320, 256)
+    timeline, out = _render_frames(scenario, 17, [0])
+    fb = out[0]
+    cam = timeline.cameras["rgb"]
+    for rec in frame_labels(timeline, 0, "rgb", fb.mask_rgb):
+        ys, xs = np.nonzero(fb.mask_rgb == rec["id"])
+        assert rec["box"] == [xs.min(), ys.min(), xs.max() - xs.min() + 1, ys.max() - ys.min() + 1]
+        track = timeline.targets[rec["id"] - 1]
+        projected, _ = cam.project(0, track.position_m[0])
+        centre = np.array([xs.mean() + 0.5, ys.mean() + 0.5])
+        assert np.linalg.norm(centre - projected[0]) < 2.0  # mirrored axes would put it far away
+
+
+def test_out_of_view_has_absent_frames_with_empty_boxes():
+    scenario = shrink(load_scenario("out_of_view"), 320, 256, spp=1)
+    timeline = build_timeline(scenario, 19)
+    renderer = SequenceRenderer(timeline)
+    exist = []
+    for i in range(0, timeline.n_frames, 3):
+        fb = renderer.render_frame(i)
+        rec = frame_labels(timeline, i, "rgb", fb.mask_rgb)[0]
+        exist.append(rec["exist"])
+        if not rec["exist"]:
+            assert rec["box"] == [] and rec["visible_px"] == 0
+    assert exist[0] == 1 and exist[-1] == 1 and 0 in exist
+    first_gap = exist.index(0)
+    assert 1 in exist[first_gap:]  # it comes back
+
+
+def test_registered_cameras_agree_within_one_pixel_after_scaling():
+    scenario = load_scenario("clear_day_quad")
+    rig = scenario.camera_rig
+    near = scenario.targets[0].model_copy(update={"trajectory": Hover(center_m=(0.8, 40, 11.6), drift_m=0.1)})
+    scenario = scenario.model_copy(update={"targets": [near], "camera_rig": rig.model_copy(update={"track_target": None, "look_at_m": (0, 40, 11)})})
+    scenario = shrink(scenario, 320, 256, spp=2, thermal_width_px=160, thermal_height_px=128)
+    _, out = _render_frames(scenario, 1, [0])
+    fb = out[0]
+    ys, xs = np.nonzero(fb.mask_rgb == 1)
+    yt, xt = np.nonzero(fb.mask_thermal == 1)
+    rgb_centre = np.array([xs.mean() + 0.5, ys.mean() + 0.5]) / 2.0
+    th_centre = np.array([xt.mean() + 0.5, yt.mean() + 0.5])
+    assert np.linalg.norm(rgb_centre - th_centre) < 1.0
+
+
+def _digest(folder):
+    h = hashlib.sha256()
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        h.update(path.relative_to(folder).as_posix().encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def test_same_seed_is_byte_identical_and_different_seed_differs(tmp_path):
+    scenario = shrink(load_scenario("bird_confuser"), 96, 80)
+    a = render_sequence(scenario, 5, tmp_path / "a", n_frames=3, progress=False)["native"]
+    b = render_sequence(scenario, 5, tmp_path / "b", n_frames=3, progress=False)["native"]
+    c = render_sequence(scenario, 6, tmp_path / "c", n_frames=3, progress=False)["native"]
+    assert _digest(a) == _digest(b)
+    assert _digest(a) != _digest(c)
+
+
+def test_antiuav_output_has_the_benchmark_field_semantics(tmp_path):
+    scenario = shrink(load_scenario("out_of_view"), 320, 256, spp=1)
+    written = render_sequence(scenario, 19, tmp_path, formats=("native", "antiuav"), progress=False)
+    ir = written["antiuav"]
+    frames = sorted(ir.glob("*.jpg"))
+    assert frames[0].name == "000001.jpg" and len(frames) == scenario.n_frames
+    data = json.loads((ir / "IR_label.json").read_text())
+    assert len(data["exist"]) == len(data["gt_rect"]) == len(frames)
+    for flag, rect in zip(data["exist"], data["gt_rect"]):
+        assert (flag == 1 and len(rect) == 4 and rect[2] > 0 and rect[3] > 0) or (flag == 0 and rect == [])
+    assert 0 in data["exist"] and 1 in data["exist"]
+    exist, rects = read_antiuav_labels(written["antiuav_visible"] / "visible.json")
+    assert len(exist) == len(rects) == len(frames)
+    native = json.loads((written["native"] / "labels.json").read_text())
+    assert [f["thermal"][0]["exist"] for f in native["frames"]] == data["exist"]
