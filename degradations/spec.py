@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from degradations.base import DEFAULT_LEVEL, MODALITIES, PER_FRAME_KEYS, make_rng
@@ -129,24 +128,40 @@ def parse_spec(data: Any) -> DegradationSpec:
     try:
         return DegradationSpec.model_validate(data)
     except ValidationError as exc:
+        from scenes.errors import short_repr
+
         lines = []
-        for err in exc.errors():
+        errors = exc.errors(include_url=False)
+        for err in errors[:20]:
             loc = tuple(p for p in err["loc"] if p not in ("constant", "step", "ramp", "random"))
-            lines.append(f"{_loc(loc)}: {err['msg'].removeprefix('Value error, ')} (got {err.get('input')!r})")
+            lines.append(f"{_loc(loc)}: {err['msg'].removeprefix('Value error, ')} (got {short_repr(err.get('input'))})")
+        if len(errors) > 20:
+            lines.append(f"... and {len(errors) - 20} more problem(s)")
         raise SpecError("invalid degradation spec: " + "; ".join(lines)) from None
 
 
 def load_spec(path: str | Path) -> DegradationSpec:
     """Read and validate a YAML or JSON spec file."""
+    from scenes.errors import UserInputError
+    from scenes.yaml_safe import MAX_BYTES, load_yaml
+
     p = Path(path)
     try:
+        if p.stat().st_size > MAX_BYTES:
+            raise SpecError(f"spec {str(p)!r} is larger than {MAX_BYTES} bytes; not a degradation spec")
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise SpecError(f"cannot read spec {str(p)!r}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"spec {str(p)!r} is not UTF-8 text (byte {exc.start})") from None
     try:
-        data = json.loads(text) if p.suffix.lower() == ".json" else yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        raise SpecError(f"spec {str(p)!r} is not valid {'JSON' if p.suffix.lower() == '.json' else 'YAML'}: {exc}") from None
+        data = json.loads(text) if p.suffix.lower() == ".json" else load_yaml(text, f"spec {str(p)!r}")
+    except json.JSONDecodeError as exc:
+        raise SpecError(f"spec {str(p)!r} is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise SpecError(f"spec {str(p)!r} is nested too deeply to read") from None
+    except UserInputError as exc:
+        raise SpecError(str(exc)) from None
     if not isinstance(data, dict):
         raise SpecError(f"spec {str(p)!r}: top level must be a mapping, got {type(data).__name__}")
     return parse_spec(data)
