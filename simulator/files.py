@@ -86,7 +86,7 @@ def _host_tag() -> str:
 
 #: id of this process's run: pid, host hash and a random token (temp folders carry it)
 RUN_ID = f"r{os.getpid()}-{_host_tag()}-{secrets.token_hex(3)}"
-_TEMP_RE = re.compile(r"^\.(?:tmp|old)-(?P<name>.+)-r(?P<pid>\d+)-(?P<host>[0-9a-f]{8})-(?P<token>[0-9a-f]{6})$")
+_TEMP_RE = re.compile(r"^\.(?:tmp|old|native)-(?P<name>.+)-r(?P<pid>\d+)-(?P<host>[0-9a-f]{8})-(?P<token>[0-9a-f]{6})$")
 
 
 def run_id() -> str:
@@ -132,11 +132,14 @@ def is_evids_output(folder: Path) -> bool:
         except (ValueError, OSError, AttributeError):
             return False
         return fmt in ("evids-native-dataset", "trident") and (folder / "manifest.json").is_file()
+    if (folder / "config.yaml").is_file() and (folder / "run.json").is_file():
+        return True  # an experiment run folder
     return (folder / "meta.json").is_file() and (folder / HASH_FILE).is_file()
 
 
 def _is_empty_dir(folder: Path) -> bool:
-    return folder.is_dir() and not any(folder.iterdir())
+    """No entries besides evids' own bookkeeping (a lock or marker left by a killed run)."""
+    return folder.is_dir() and not folder.is_symlink() and all(c.name in (LOCK_FILE, MARKER_FILE) for c in folder.iterdir())
 
 
 def _overlaps(a: Path, b: Path) -> bool:
@@ -265,6 +268,15 @@ def _check_replaceable(final: Path, overwrite: bool) -> None:
         raise FileExistsError(f"{final} holds files evids did not write; not replaced")
     if not overwrite:
         raise FileExistsError(f"{final} already exists (ask for --overwrite to replace it)")
+
+
+def remove_output(folder: Path) -> None:
+    """Delete ``folder`` only if it is an evids output (or absent/empty); otherwise FileExistsError."""
+    folder = Path(folder)
+    if not (folder.exists() or folder.is_symlink()):
+        return
+    _check_replaceable(folder, overwrite=True)
+    shutil.rmtree(folder)
 
 
 def copy_tree_no_symlinks(src: Path, dst: Path, *, skip: Iterable[str] = ()) -> None:

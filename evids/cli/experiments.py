@@ -24,7 +24,13 @@ def train(
     from evids.experiments import load_experiment_config
     from evids.experiments.runner import stage_train
 
-    cfg = load_experiment_config(config)
+    from simulator.files import check_output, write_marker
+
+    cfg = load_experiment_config(config)  # validated in full (evids.experiments.validate) before any work
+    inputs = [config] + ([Path(cfg.dataset.path)] if cfg.dataset.path else [])
+    check_output(out, inputs=inputs, allow_resume=True)
+    out.mkdir(parents=True, exist_ok=True)
+    write_marker(out, "run")
     stage_train(cfg, out, progress)
     typer.echo(f"trained: {out / 'models.pt'}")
 
@@ -86,7 +92,11 @@ def demo(
     and a gate sweep, and write OUT/report.html (about 10 minutes on 2 CPU cores; --quick: toy scale).
     """
     from evids.experiments import run_demo
+    from simulator.files import check_output, write_marker
 
+    check_output(out, allow_resume=True)
+    out.mkdir(parents=True, exist_ok=True)
+    write_marker(out, "run")
     times = run_demo(out, quick=quick, progress=progress, log=typer.echo)
     typer.echo(f"total: {sum(times.values()):.1f} s")
     typer.echo(f"report: {out / 'report.html'}")

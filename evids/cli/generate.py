@@ -53,6 +53,9 @@ def generate(
             raise UserInputError("--format trident takes --clips, --seed and --quiet only (not --sequences, --frames, "
                                  "--workers, --executor or --overwrite)")
 
+        from simulator.files import check_output
+
+        check_output(out, inputs=[Path(config)] if Path(config).is_file() else [])
         try:
             path = generate_trident(config, out, seed, n_clips=clips, progress=not quiet)
         except ValueError as exc:
@@ -75,6 +78,8 @@ def generate(
     except KeyboardInterrupt:
         typer.echo("interrupted: finished sequences are kept; run the same command again to resume", err=True)
         raise typer.Exit(130) from None
+    for note in result.notes:
+        typer.echo(f"note: {note}", err=True)
     typer.echo(f"native: {result.out_dir} ({len(result.rendered)} rendered, {len(result.skipped)} already complete)")
     for kind, path in result.exports.items():
         typer.echo(f"{kind}: {path}")
@@ -89,6 +94,7 @@ def export(
                                        "(MM-UAV's test split uses 20)."),
     distractors: Optional[bool] = typer.Option(None, "--distractors/--no-distractors", help="Include birds/aircraft "
                                                "(default: no for mot, yes for coco as flagged categories)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace an export an earlier `evids export` wrote."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
 ) -> None:
     """Export a native dataset to benchmark layouts (Anti-UAV, MM-UAV, COCO-video).
@@ -100,10 +106,15 @@ def export(
     formats = [f for f in _formats(fmt) if f != "native"]
     if not formats:
         raise UserInputError("--format: give at least one of antiuav, antiuav_rgbt, mot, coco")
-    for f in formats:
-        target = (out if len(formats) == 1 else out / f) if out is not None else dataset / f
+    from simulator.dataset.generate import MANIFEST, SEQUENCES_DIR
+    from simulator.files import check_output
+
+    targets = {f: (out if len(formats) == 1 else out / f) if out is not None else dataset / f for f in formats}
+    for f, target in targets.items():  # all refused before any is written
+        check_output(target, inputs=[dataset / MANIFEST, dataset / SEQUENCES_DIR], overwrite=overwrite)
+    for f, target in targets.items():
         path = export_dataset(dataset, f, target, annotate_every=annotate_every, distractors=distractors,
-                              progress=not quiet)
+                              progress=not quiet, overwrite=overwrite)
         typer.echo(f"{f}: {path}")
 
 
@@ -129,12 +140,18 @@ def fixture(
     out: Path = typer.Option(..., "--out", "-o", help="Output folder (new or empty)."),
     preset: str = typer.Option("clear_day_quad", "--preset", help="Scene preset to render."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace a fixture folder an earlier `evids fixture` wrote."),
 ) -> None:
     """Write a tiny regression dataset (the pytest plugin's fixtures; bytes stable per package version).
 
     Example: evids fixture mmuav --out tests/data/mmuav
     """
     from simulator.dataset.fixtures import build_fixture
+    from simulator.files import check_output, remove_output
+
+    check_output(out, overwrite=overwrite)
+    if overwrite:
+        remove_output(out)
 
     typer.echo(f"{name}: {build_fixture(name, out, preset=preset, seed=seed)}")
 

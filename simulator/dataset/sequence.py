@@ -11,7 +11,7 @@ import numpy as np
 
 from scenes.loader import scenario_to_yaml
 from scenes.schema import Scenario
-from simulator.files import atomic_folder, package_versions, write_hashes
+from simulator.files import atomic_folder, package_versions, remove_output, temp_sibling, write_hashes
 from simulator.formats.native import FORMAT_VERSION, frame_name, write_json, write_png
 from simulator.physics.timeline import Timeline, build_timeline
 from simulator.render.labels import CLASS_OF_KIND, frame_labels
@@ -76,12 +76,17 @@ def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
 
 def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: int | None = None,
                     formats: tuple[str, ...] = ("native",), preview: bool = False, progress: bool = True,
-                    times: PassTimes | None = None) -> dict[str, Path]:
+                    times: PassTimes | None = None, overwrite: bool = False,
+                    notes: list[str] | None = None) -> dict[str, Path]:
     """Render ``scenario`` with ``seed`` into ``out_dir``; returns the written paths by kind.
 
     native: ``out_dir/<name>/`` (docs/NATIVE_FORMAT.md); antiuav: ``out_dir/antiuav/<name>/`` and
     ``<name>_visible/``; preview: ``out_dir/<name>_preview.png``. Nothing is left half-written.
+    Existing outputs are replaced only with ``overwrite`` and only if evids wrote them. A camera
+    pose that sees nothing is refused before rendering; plausibility findings (a target never in
+    view, clipped thermal counts) are appended to ``notes``.
     """
+    from simulator.dataset.plausibility import check_camera_poses, targets_never_seen
     from simulator.render.renderer import SequenceRenderer
 
     unknown = [f for f in formats if f not in FORMATS]
@@ -90,14 +95,16 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
     out_dir = Path(out_dir)
     times = times or PassTimes()
     timeline = build_timeline(scenario, seed, n_frames)
+    check_camera_poses(timeline)
     renderer = SequenceRenderer(timeline)
     netd = scenario.camera_rig.thermal.netd_k
+    clipped_px = 0
     kpc = scenario.camera_rig.thermal.kelvin_per_count
     written: dict[str, Path] = {}
     final = out_dir / scenario.name
     keep_native = "native" in formats
-    staging = final if keep_native else out_dir / f".native-{scenario.name}"
-    with atomic_folder(staging) as tmp:
+    staging = final if keep_native else temp_sibling(final, "native")
+    with atomic_folder(staging, overwrite=overwrite, kind="sequence") as tmp:
         frames = []
         iterator = range(timeline.n_frames)
         bar = None
@@ -119,7 +126,9 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                 buffers = renderer.render_frame(i)
                 t0 = times.add("render (rgb + thermal + masks)", t0)
                 write_png(tmp / "rgb" / frame_name(i, "png"), rgb_to_srgb8(buffers.rgb_linear))
-                write_png(tmp / "thermal" / frame_name(i, "png"), kelvin_to_counts(buffers.thermal_kelvin, kpc))
+                counts = kelvin_to_counts(buffers.thermal_kelvin, kpc)
+                clipped_px += int(np.count_nonzero(counts == 65535))
+                write_png(tmp / "thermal" / frame_name(i, "png"), counts)
                 write_png(tmp / "thermal_agc" / frame_name(i, "png"), agc_8bit(buffers.thermal_kelvin)[0])
                 write_png(tmp / "masks" / "rgb" / frame_name(i, "png"), buffers.mask_rgb)
                 write_png(tmp / "masks" / "thermal" / frame_name(i, "png"), buffers.mask_thermal)
@@ -151,9 +160,18 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
         write_hashes(tmp)
     if keep_native:
         written["native"] = final
+    if notes is not None:
+        notes.extend(f"target {name!r} is never in view of any camera (all frames exist: 0)"
+                     for name in targets_never_seen(frames))
+        if clipped_px:
+            notes.append(f"{clipped_px} thermal pixel(s) clipped at 65535 counts; raise kelvin_per_count")
     try:
         if "antiuav" in formats:
             from simulator.formats.antiuav import export_antiuav
+
+            if overwrite:
+                remove_output(out_dir / "antiuav" / scenario.name)
+                remove_output(out_dir / "antiuav" / f"{scenario.name}_visible")
 
             ir, vis = export_antiuav(staging, out_dir / "antiuav", scenario.name)
             written["antiuav"], written["antiuav_visible"] = ir, vis
@@ -176,6 +194,9 @@ def render_rgb_video(scenario: Scenario, seed: int, n_frames: int, width_px: int
         "rgb": rig.rgb.model_copy(update={"width_px": width_px, "height_px": height_px}),
         "thermal": rig.thermal.model_copy(update={"width_px": 16, "height_px": 16})})})
     timeline = build_timeline(small, seed, n_frames)
+    from simulator.dataset.plausibility import check_camera_poses
+
+    check_camera_poses(timeline)
     renderer = SequenceRenderer(timeline)
     return np.stack([rgb_to_srgb8(renderer.render_frame(i).rgb_linear) for i in range(timeline.n_frames)])
 
