@@ -92,7 +92,10 @@ def load_yaml(text: str, source: str) -> Any:
     """Parse one YAML document from ``text`` with the limits above; errors name ``source``."""
     if len(text) > MAX_BYTES:
         raise UserInputError(f"{source}: {len(text)} characters is larger than the {MAX_BYTES} a config may have")
-    loader = _BoundedLoader(text)
+    try:
+        loader = _BoundedLoader(text)
+    except yaml.YAMLError as exc:  # the reader refuses control characters up front
+        raise UserInputError(f"{source}: not valid YAML: {_bounded_text(str(exc))}") from None
     try:
         try:
             node = loader.get_single_node()
