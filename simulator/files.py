@@ -123,7 +123,7 @@ def is_evids_output(folder: Path) -> bool:
     """True if ``folder`` was written by evids: it holds the marker, or it is a native dataset,
     native sequence, TRIDENT set or run folder in the layouts this project writes."""
     folder = Path(folder)
-    if (folder / MARKER_FILE).is_file():
+    if (folder / MARKER_FILE).is_file() or (folder / LOCK_FILE).is_file():
         return True
     manifest = folder / "manifest.json"
     if manifest.is_file():
@@ -162,11 +162,7 @@ def check_output(out: Path, *, inputs: Iterable[Path] = (), overwrite: bool = Fa
         raise UserInputError(f"{flag} {str(raw)!r} is the current folder or one of its parents; give a new sub-folder")
     if resolved == Path(resolved.anchor) or resolved == Path.home().resolve():
         raise UserInputError(f"{flag} {str(raw)!r} is a root or home folder; give a new sub-folder")
-    for inp in inputs:
-        inp_r = Path(inp).resolve()
-        if _overlaps(resolved, inp_r):
-            rel = "is" if resolved == inp_r else ("contains" if resolved in inp_r.parents else "is inside")
-            raise UserInputError(f"{flag} {str(raw)!r} {rel} the input {str(inp)!r}; write somewhere else")
+    check_no_overlap(raw, inputs, flag)
     if raw.is_symlink():
         raise UserInputError(f"{flag} {str(raw)!r} is a symbolic link; give a real folder")
     if not raw.exists() or _is_empty_dir(raw):
@@ -178,6 +174,18 @@ def check_output(out: Path, *, inputs: Iterable[Path] = (), overwrite: bool = Fa
                              "(choose a new folder)")
     if not (overwrite or allow_resume):
         raise UserInputError(f"{flag} {str(raw)!r} already holds evids output; use --overwrite to replace it")
+
+
+def check_no_overlap(out: Path, inputs: Iterable[Path], flag: str = "--out") -> None:
+    """Refuse an output folder that is, contains or lies inside any input (UserInputError)."""
+    from scenes.errors import UserInputError
+
+    resolved = Path(out).resolve()
+    for inp in inputs:
+        inp_r = Path(inp).resolve()
+        if _overlaps(resolved, inp_r):
+            rel = "is" if resolved == inp_r else ("contains" if resolved in inp_r.parents else "is inside")
+            raise UserInputError(f"{flag} {str(out)!r} {rel} the input {str(inp)!r}; write somewhere else")
 
 
 def _pid_alive(pid: int) -> bool:

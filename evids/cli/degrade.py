@@ -24,7 +24,7 @@ def degrade(
     from degradations.spec import load_spec
     from simulator.dataset.degrade import degrade_sequence, find_sequences
 
-    from simulator.files import check_output
+    from simulator.files import check_no_overlap, check_output
 
     try:
         parsed = load_spec(spec)
@@ -32,6 +32,7 @@ def degrade(
         raise UserInputError(str(exc)) from None
     sequences = find_sequences(dataset)
     # every output is checked before the first is written: all or nothing is refused
+    check_no_overlap(out, [dataset, *sequences, spec])
     for sequence in sequences:
         check_output(out / sequence.name, inputs=[dataset, sequence, spec], overwrite=overwrite)
     for sequence in sequences:

@@ -396,7 +396,7 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
 
     out = Path(out_dir)
     config_file = [Path(config_or_name)] if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file() else []
-    if out.is_dir() and any(c.name != LOCK_FILE for c in out.iterdir()) and not (out / MANIFEST).is_file():
+    if out.is_dir() and not (out / LOCK_FILE).exists() and any(out.iterdir()) and not (out / MANIFEST).is_file():
         raise UserInputError(f"output folder {str(out)!r} is not empty and holds no evids dataset; choose another --out")
     check_output(out, inputs=config_file, overwrite=overwrite, allow_resume=True)
     lock = DatasetLock(out, "generate").acquire()
