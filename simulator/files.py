@@ -317,7 +317,10 @@ class DatasetLock:
     SIGKILL). A second writer refuses with the holder's pid/host; a lock file left by a dead run is
     detected, reported in ``stale`` and taken over."""
 
-    def __init__(self, folder: Path, purpose: str = "write"):
+    def __init__(self, folder: Path, purpose: str = "write", *, required: bool = True):
+        """``required=False`` (readers such as export): a folder where no lock file can be created
+        (read-only media) is used unlocked, since no writer can change it either."""
+        self.required = required
         self.folder = Path(folder)
         self.path = self.folder / LOCK_FILE
         self.purpose = purpose
@@ -329,8 +332,13 @@ class DatasetLock:
 
         from scenes.errors import UserInputError
 
-        self.folder.mkdir(parents=True, exist_ok=True)
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError:
+            if self.required:
+                raise
+            return self
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -563,7 +563,7 @@ def export_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, an
     root = Path(dataset_dir)
     load_manifest(root)
     check_output(Path(out_dir), inputs=[root / MANIFEST, root / SEQUENCES_DIR], overwrite=overwrite)
-    with DatasetLock(root, f"export {fmt}"):
+    with DatasetLock(root, f"export {fmt}", required=False):
         return _export_locked(root, fmt, out_dir, annotate_every=annotate_every, distractors=distractors,
                               progress=progress, overwrite=overwrite)
 

@@ -188,3 +188,18 @@ def test_a_second_writer_is_refused_and_a_dead_holder_is_detected(tmp_path):
         assert lock.stale is not None and lock.stale["pid"] == proc.pid
         assert json.loads((folder / LOCK_FILE).read_text())["pid"] == os.getpid()
     assert not (folder / LOCK_FILE).exists()
+
+
+def test_a_reader_lock_on_a_read_only_dataset_is_skipped_not_fatal(tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        if os.access(ro, os.W_OK):  # root ignores permissions
+            pytest.skip("running as root: cannot make a read-only folder")
+        with DatasetLock(ro, "export", required=False):
+            pass
+        with pytest.raises(PermissionError):
+            DatasetLock(ro, "generate").acquire()
+    finally:
+        ro.chmod(0o755)
