@@ -11,7 +11,6 @@ Run: .venv/bin/python benchmarks/degrade_memory.py [--short 20 --long 80]
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys

@@ -23,7 +23,6 @@ def degrade(
     from degradations.errors import DegradationError
     from degradations.spec import load_spec
     from simulator.dataset.degrade import degrade_sequence, find_sequences
-
     from simulator.files import check_no_overlap, check_output
 
     try:

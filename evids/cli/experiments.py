@@ -23,7 +23,6 @@ def train(
     """
     from evids.experiments import load_experiment_config
     from evids.experiments.runner import stage_train
-
     from simulator.files import check_output, write_marker
 
     cfg = load_experiment_config(config)  # validated in full (evids.experiments.validate) before any work
