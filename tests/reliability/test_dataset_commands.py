@@ -256,3 +256,24 @@ def test_a_killed_runs_lock_is_reported_and_the_resume_completes(dataset, tmp_pa
 def test_markers_do_not_change_sequence_hashes(tiny_dataset):
     assert verify_dataset(tiny_dataset).ok
     assert os.path.exists(tiny_dataset / "sequences" / "seq000001" / MARKER_FILE)
+
+
+def test_trident_cleans_a_killed_runs_temporary_and_keeps_a_live_ones(tmp_path):
+    import numpy as np
+
+    from simulator.dataset.trident import generate_trident
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    host = files._host_tag()
+    stale = tmp_path / f".tmp-tri-r{dead.pid}-{host}-abcdef"
+    live = tmp_path / f".tmp-tri-r{os.getpid()}-{host}-fedcba"
+    stale.mkdir()
+    live.mkdir()
+
+    def frames(scenario, seed, n, w, h):
+        return np.zeros((n, h, w, 3), np.uint8)
+
+    config = {"name": "t", "clip_duration_s": 0.25, "save_iq": False, "clips": [{"scenario": "clear_day_quad"}]}
+    generate_trident(config, tmp_path / "tri", 0, progress=False, render_frames=frames)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["tri", live.name])

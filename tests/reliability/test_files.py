@@ -10,6 +10,8 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from scenes.errors import UserInputError
 from simulator import files
@@ -203,3 +205,31 @@ def test_a_reader_lock_on_a_read_only_dataset_is_skipped_not_fatal(tmp_path):
             DatasetLock(ro, "generate").acquire()
     finally:
         ro.chmod(0o755)
+
+
+_PARTS = st.sampled_from(["a", "b", "ds", "sequences", "..", "."])
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(_PARTS, min_size=0, max_size=5), st.lists(_PARTS, min_size=1, max_size=4))
+def test_any_out_that_passes_is_disjoint_from_the_input_and_below_the_cwd(out_parts, in_parts):
+    """Property over relative paths: whatever --out a user types, a passing check means the output
+    neither is, contains nor lies inside the input, and is not the current folder or above it."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        cwd = Path(tmp) / "work" / "here"
+        cwd.mkdir(parents=True)
+        old = Path.cwd()
+        os.chdir(cwd)
+        try:
+            out, inp = Path(*out_parts) if out_parts else Path("."), Path(*in_parts)
+            try:
+                check_output(out, inputs=[inp])
+            except UserInputError:
+                return
+            o, i, c = out.resolve(), inp.resolve(), cwd.resolve()
+            assert o != i and o not in i.parents and i not in o.parents
+            assert o != c and o not in c.parents
+        finally:
+            os.chdir(old)
