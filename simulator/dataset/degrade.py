@@ -96,7 +96,8 @@ def degrade_sequence(sequence: Path, spec, out_dir: Path, seed: int, *, overwrit
 
     sequence = Path(sequence)
     check_output(Path(out_dir) / sequence.name, inputs=[sequence], overwrite=overwrite)
-    final = inside(Path(out_dir) / sequence.name, Path(out_dir))
+    final = Path(out_dir) / sequence.name
+    inside(final, Path(out_dir))
     info, labels = load_meta(sequence), load_labels(sequence)
     n = int(info["n_frames"])
     kpc = info["cameras"]["thermal"]["kelvin_per_count"]

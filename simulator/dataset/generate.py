@@ -551,8 +551,10 @@ def dataset_sequences(dataset_dir: str | Path) -> list[dict[str, Any]]:
     manifest = load_manifest(root)
     if not manifest.get("complete"):
         raise UserInputError(f"{root}: the dataset is incomplete; re-run `evids generate` with the same arguments")
-    return [{**e, "path": inside(root / SEQUENCES_DIR / e["name"], root / SEQUENCES_DIR)}
-            for e in _manifest_entries(manifest, root)]
+    entries = _manifest_entries(manifest, root)
+    for e in entries:
+        inside(root / SEQUENCES_DIR / e["name"], root / SEQUENCES_DIR)  # no link out of the dataset either
+    return [{**e, "path": root / SEQUENCES_DIR / e["name"]} for e in entries]
 
 
 def export_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, annotate_every: int = 1,
