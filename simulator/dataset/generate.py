@@ -189,10 +189,11 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
             cv2.setNumThreads(int(threads))
         scenario = Scenario.model_validate(task["scenario"])
         cpu0 = time.process_time()
+        notes: list[str] = []
         written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False,
-                                  overwrite=True)
+                                  overwrite=True, notes=notes)
         return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
-                "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid()}
+                "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid(), "notes": notes}
     except Exception as exc:  # reported per sequence by the driver; other sequences continue
         last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
         where = f" at {Path(last.filename).name}:{last.lineno}" if last else ""
@@ -455,6 +456,7 @@ def _generate_locked(out: Path, config: GenerationConfig, seed: int, tasks: list
     if failures:
         raise GenerationFailed(failures)
     result.rendered = [t["name"] for t in todo]
+    result.notes += [f"{name}: {note}" for name, r in sorted(results.items()) for note in r.get("notes", [])]
     hashes = {t["name"]: sequence_hash(seq_root / t["name"]) for t in tasks}
     write_manifest(out, _manifest(config, seed, tasks, identity, hashes))
     for fmt in formats:
