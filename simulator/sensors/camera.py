@@ -203,8 +203,10 @@ def agc(kelvin: np.ndarray, mode: str) -> np.ndarray:
         lo, hi = np.percentile(kelvin, [AGC_PERCENTILE, 100 - AGC_PERCENTILE])
         mid, span = 0.5 * (lo + hi), max(hi - lo, 0.5)
         return np.clip(np.rint((kelvin - (mid - span / 2)) / span * 255.0), 0, 255).astype(np.uint8)
-    ranks = np.argsort(np.argsort(kelvin.ravel(), kind="stable"), kind="stable")
-    return np.rint(ranks / max(ranks.size - 1, 1) * 255.0).astype(np.uint8).reshape(kelvin.shape)
+    _, inverse, counts = np.unique(kelvin.ravel(), return_inverse=True, return_counts=True)
+    below = np.cumsum(counts) - counts                       # pixels colder than each level
+    scale = 255.0 / max(int(below[-1]), 1)
+    return np.rint(below[inverse] * scale).astype(np.uint8).reshape(kelvin.shape)
 
 
 def shot_noise(electrons: np.ndarray, rng: np.random.Generator) -> np.ndarray:
