@@ -68,6 +68,7 @@ def psf_kernel(pixel_pitch_um: float, f_number: float, wavelength_um: float, def
     size_px = 2 * radius_px + 1
     cutoff = 1.0 / (wavelength_um * f_number)                        # cycles/um
     sub = int(max(8, np.ceil(4 * pixel_pitch_um * cutoff)))          # fine samples per pixel (> Nyquist)
+    sub = min(sub, max(8, 2048 // size_px))                           # bound the one-off FFT size
     n = size_px * sub
     f = np.fft.fftfreq(n, d=pixel_pitch_um / sub)
     fx, fy = np.meshgrid(f, f)
@@ -329,14 +330,23 @@ class RgbSensor:
         x = np.stack([self.optics[c](rgb_linear[..., c]) for c in range(3)], -1)
         x = motion_blur(x, self.motion, frame, self.exposure_time_s / self.frame_period_s, "box", 0.0,
                         self.frame_period_s, self.kernels[0].shape[0] // 2)
-        electrons = np.clip(x, 0.0, None).astype(np.float32) * np.float32(self.electrons_per_unit)
+        electrons = np.maximum(x, np.float32(0.0), dtype=np.float32)
+        electrons *= np.float32(self.electrons_per_unit)
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["rgb"], NOISE_STREAM, frame)
         noisy = shot_noise(electrons, rng)
         noisy += np.float32(self.read_noise_e) * rng.standard_normal(noisy.shape, dtype=np.float32)
-        levels = np.float32(2 ** p.adc_bits - 1)
-        dn = np.clip(np.rint(noisy * (levels / np.float32(self.full_well_e))), 0, levels)
-        value = dn * np.float32(self.gain / levels)   # fraction of full well x gain: 1.0 = white
-        return rgb_to_srgb8(value.astype(np.float32))
+        levels = 2 ** p.adc_bits - 1
+        noisy *= np.float32(levels / self.full_well_e)
+        dn = np.clip(np.rint(noisy), 0, levels).astype(np.int32)
+        return self.srgb_lut[dn]
+
+    @property
+    def srgb_lut(self) -> np.ndarray:
+        """sRGB 8-bit value of every ADC level (value = DN / levels x gain, 1.0 = white)."""
+        if getattr(self, "_lut", None) is None:
+            levels = 2 ** self.params.adc_bits - 1
+            self._lut = rgb_to_srgb8((np.arange(levels + 1) * (self.gain / levels)).astype(np.float32))
+        return self._lut
 
     def metadata(self) -> dict:
         p = self.params

@@ -55,7 +55,7 @@ def test_defocus_spreads_the_psf_and_a_large_blur_circle_is_a_uniform_disk():
     soft = cam.psf_kernel(12.0, 1.0, 10.0, 24.0)
     c = sharp.shape[0] // 2
     assert soft[soft.shape[0] // 2, soft.shape[0] // 2] < sharp[c, c] - 0.2
-    disk = cam.psf_kernel(10.0, 0.7, 0.5, 200.0)   # geometric blur >> diffraction: ~ pi 10^2 pixels
+    disk = cam.psf_kernel(12.0, 1.0, 10.0, 240.0)   # blur circle radius 10 px >> diffraction
     cd = disk.shape[0] // 2
     inner = disk[cd - 5:cd + 6, cd - 5:cd + 6]
     assert inner.std() / inner.mean() < 0.05
