@@ -385,6 +385,10 @@ class CameraModel:
         kelvin, counts, shown = self.thermal.record(frame, thermal_radiance)
         return RecordedFrame(self.rgb.record(frame, rgb_linear), counts, shown, kelvin)
 
+    def record_buffers(self, frame: int, buffers) -> RecordedFrame:
+        """``record`` for any object with rgb_linear, thermal_radiance and thermal_kelvin (FrameBuffers)."""
+        return self.record(frame, buffers.rgb_linear, buffers.thermal_radiance, buffers.thermal_kelvin)
+
     def metadata(self) -> dict:
         if self.ideal:
             return {"sensor": "ideal"}
