@@ -6,6 +6,7 @@ the YAML (names end in _deg); temperatures in kelvin (names end in _k).
 from __future__ import annotations
 
 import datetime as dt
+import math
 from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -137,6 +138,13 @@ class Sky(_Model):
     clouds: Clouds | None = None
 
 
+def saturation_vapour_density_g_m3(air_temperature_k: float) -> float:
+    """Water-vapour density at saturation over water, g m^-3 (Magnus form, Alduchov & Eskridge 1996)."""
+    t_c = float(air_temperature_k) - 273.15
+    e_pa = 610.94 * math.exp(17.625 * t_c / (t_c + 243.04))
+    return e_pa / (461.5 * float(air_temperature_k)) * 1000.0
+
+
 AtmosphereModel = Literal["user", "tropical", "midlat_summer", "midlat_winter", "subarctic_summer",
                           "subarctic_winter", "us_standard"]
 
@@ -147,8 +155,8 @@ class Atmosphere(_Model):
     - ``model: user`` (default): the sky is interpolated between the AFGL model atmospheres by the
       absolute humidity of this air; horizontal paths use LOWTRAN7 for exactly this air.
     - a named AFGL model: that model's sky and path tables (air temperature still sets L(T_air)).
-    Humidity: ``relative_humidity`` (0-1) or ``absolute_humidity_g_m3`` (water-vapour density), not
-    both. ``visibility_m`` (Koschmieder, 2 % contrast) drives the visible haze and the LWIR aerosol.
+    Humidity: ``relative_humidity`` (0-1) or ``absolute_humidity_g_m3`` (water-vapour density; it
+    then sets relative_humidity, and both given must agree). ``visibility_m`` (Koschmieder, 2 % contrast) drives the visible haze and the LWIR aerosol.
     """
 
     air_temperature_k: float = Field(default=288.0, gt=200.0, lt=340.0)
@@ -157,11 +165,34 @@ class Atmosphere(_Model):
     visibility_m: float = Field(default=20000.0, gt=10.0)
     model: AtmosphereModel = "user"
 
-    @model_validator(mode="after")
-    def _one_humidity(self) -> "Atmosphere":
-        if self.absolute_humidity_g_m3 is not None and "relative_humidity" in self.model_fields_set:
-            raise ValueError("give relative_humidity or absolute_humidity_g_m3, not both")
-        return self
+    @model_validator(mode="before")
+    @classmethod
+    def _humidity_from_absolute(cls, data):
+        """absolute_humidity_g_m3 sets relative_humidity (so every consumer sees one air); both
+        given must agree within 0.01 (a resolved YAML carries both)."""
+        if not isinstance(data, dict) or data.get("absolute_humidity_g_m3") is None:
+            return data
+        try:
+            ah = float(data["absolute_humidity_g_m3"])
+            t_k = float(data.get("air_temperature_k", 288.0))
+        except (TypeError, ValueError):
+            return data   # the field validators report the bad value
+        if not 200.0 < t_k < 340.0 or ah < 0:
+            return data
+        rh = ah / saturation_vapour_density_g_m3(t_k)
+        if rh > 1.0 + 1e-6:
+            raise ValueError(f"absolute_humidity_g_m3 {ah} exceeds saturation at {t_k} K "
+                             f"({saturation_vapour_density_g_m3(t_k):.2f} g m^-3)")
+        given = data.get("relative_humidity")
+        if given is not None:
+            try:
+                if abs(float(given) - rh) > 0.01:
+                    raise ValueError(f"relative_humidity {given} and absolute_humidity_g_m3 {ah} disagree "
+                                     f"(that is RH {rh:.3f} at {t_k} K): give one of them")
+            except TypeError:
+                return data
+            return data
+        return {**data, "relative_humidity": min(rh, 1.0)}
 
 
 class CameraIntrinsics(_Model):

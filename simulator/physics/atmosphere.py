@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.schema import Atmosphere
+from scenes.schema import Atmosphere, saturation_vapour_density_g_m3
 from simulator.physics import thermal
 
 TABLE_PATH = Path(__file__).with_name("data") / "lowtran_lwir.json"
@@ -36,14 +36,6 @@ MODEL_NAMES = ("tropical", "midlat_summer", "midlat_winter", "subarctic_summer",
 KOSCHMIEDER = 3.912
 AEROSOL_LWIR_TO_VISIBLE = 0.1
 AEROSOL_SCALE_HEIGHT_M = 300.0
-WATER_VAPOUR_GAS_CONSTANT = 461.5  # J kg^-1 K^-1
-
-
-def saturation_vapour_density_g_m3(air_temperature_k: float) -> float:
-    """Water-vapour density at saturation over water (Magnus form, Alduchov & Eskridge 1996)."""
-    t_c = float(air_temperature_k) - 273.15
-    e_pa = 610.94 * np.exp(17.625 * t_c / (t_c + 243.04))
-    return float(e_pa / (WATER_VAPOUR_GAS_CONSTANT * float(air_temperature_k)) * 1000.0)
 
 
 def absolute_humidity_g_m3(air_temperature_k: float, relative_humidity: float) -> float:

@@ -210,14 +210,22 @@ def agc(kelvin: np.ndarray, mode: str) -> np.ndarray:
     return np.rint(below[inverse] * scale).astype(np.uint8).reshape(kelvin.shape)
 
 
-def shot_noise(electrons: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Poisson photo-electron counts; above POISSON_EXACT_BELOW_E the normal approximation
-    (skewness 1/sqrt(n) < 3 %), which is several times faster."""
-    lam = np.minimum(electrons, 1e12).astype(np.float32)
-    out = lam + np.sqrt(lam) * rng.standard_normal(lam.shape, dtype=np.float32)
-    small = lam < POISSON_EXACT_BELOW_E
-    if small.any():
-        out[small] = rng.poisson(lam[small])
+def shot_noise(electrons: np.ndarray, rng: np.random.Generator, read_noise_e: float = 0.0) -> np.ndarray:
+    """Photo-electron counts with shot (Poisson) and read (Gaussian, rms read_noise_e) noise.
+
+    At or above POISSON_EXACT_BELOW_E electrons everywhere, one normal draw with variance
+    n + read^2 (the normal approximation of the Poisson term, skewness 1/sqrt(n) < 3 %, plus the
+    independent Gaussian read noise); otherwise exact Poisson draws and a separate read-noise draw.
+    """
+    lam = np.asarray(electrons, dtype=np.float32)
+    if float(lam.min()) >= POISSON_EXACT_BELOW_E:
+        out = rng.standard_normal(lam.shape, dtype=np.float32)
+        out *= np.sqrt(lam + np.float32(read_noise_e ** 2))
+        out += lam
+        return out
+    out = rng.poisson(np.minimum(lam, 1e12)).astype(np.float32)
+    if read_noise_e > 0:
+        out += np.float32(read_noise_e) * rng.standard_normal(lam.shape, dtype=np.float32)
     return out
 
 
@@ -331,18 +339,20 @@ class RgbSensor:
 
     def record(self, frame: int, rgb_linear: np.ndarray) -> np.ndarray:
         p = self.params
-        x = np.stack([self.optics[c](rgb_linear[..., c]) for c in range(3)], -1)
+        x = np.empty(rgb_linear.shape, np.float32)
+        for c in range(3):
+            x[..., c] = self.optics[c](rgb_linear[..., c])
         x = motion_blur(x, self.motion, frame, self.exposure_time_s / self.frame_period_s, "box", 0.0,
                         self.frame_period_s, self.kernels[0].shape[0] // 2)
         electrons = np.maximum(x, np.float32(0.0), dtype=np.float32)
         electrons *= np.float32(self.electrons_per_unit)
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["rgb"], NOISE_STREAM, frame)
-        noisy = shot_noise(electrons, rng)
-        noisy += np.float32(self.read_noise_e) * rng.standard_normal(noisy.shape, dtype=np.float32)
+        noisy = shot_noise(electrons, rng, self.read_noise_e)
         levels = 2 ** p.adc_bits - 1
         noisy *= np.float32(levels / self.full_well_e)
-        dn = np.clip(np.rint(noisy), 0, levels).astype(np.int32)
-        return self.srgb_lut[dn]
+        np.clip(noisy, 0.0, levels, out=noisy)
+        noisy += np.float32(0.5)
+        return self.srgb_lut[noisy.astype(np.int32)]   # ADC level (rounded) -> sRGB 8-bit
 
     @property
     def srgb_lut(self) -> np.ndarray:

@@ -164,9 +164,14 @@ def test_scene_atmosphere_is_cached_and_validated():
     a = Atmosphere(air_temperature_k=290.0, relative_humidity=0.7)
     assert atm.for_scene(a) is atm.for_scene(Atmosphere(air_temperature_k=290.0, relative_humidity=0.7))
     assert atm.for_scene(Atmosphere(model="tropical")).weights == {"tropical": 1.0}
-    assert atm.for_scene(Atmosphere(absolute_humidity_g_m3=9.1)).absolute_humidity_g_m3 == 9.1
-    with pytest.raises(ValidationError, match="absolute_humidity_g_m3"):
-        Atmosphere(relative_humidity=0.5, absolute_humidity_g_m3=5.0)
+    given = Atmosphere(air_temperature_k=287.2, absolute_humidity_g_m3=9.1)
+    assert atm.for_scene(given).absolute_humidity_g_m3 == 9.1
+    assert given.relative_humidity == pytest.approx(9.1 / atm.saturation_vapour_density_g_m3(287.2))
+    assert Atmosphere(**given.model_dump()) == given          # a resolved YAML (both fields) reloads
+    with pytest.raises(ValidationError, match="disagree"):
+        Atmosphere(relative_humidity=0.2, absolute_humidity_g_m3=5.0)
+    with pytest.raises(ValidationError, match="saturation"):
+        Atmosphere(air_temperature_k=273.0, absolute_humidity_g_m3=20.0)
     with pytest.raises(ValidationError, match="model"):
         Atmosphere(model="mars")
 

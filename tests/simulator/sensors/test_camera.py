@@ -148,6 +148,10 @@ def test_rgb_shot_and_read_noise_follow_the_electron_count():
     assert shot.mean() == pytest.approx(400.0, rel=0.01) and shot.var() == pytest.approx(400.0, rel=0.05)
     big = cam.shot_noise(np.full((160, 200), 1e5), rng)
     assert big.var() == pytest.approx(1e5, rel=0.05)
+    with_read = cam.shot_noise(np.full((160, 200), 1e4), rng, read_noise_e=50.0)
+    assert with_read.var() == pytest.approx(1e4 + 2500.0, rel=0.05)
+    dark = cam.shot_noise(np.full((160, 200), 20.0), rng, read_noise_e=3.0)
+    assert dark.mean() == pytest.approx(20.0, abs=0.2) and dark.var() == pytest.approx(29.0, rel=0.06)
     assert sensor.full_well_e == pytest.approx(p.full_well_e * (p.sensor_width_mm * 1000 / 200 / p.native_pixel_pitch_um) ** 2)
 
 
