@@ -224,6 +224,13 @@ class LwirAtmosphere:
             factor += w * _interp_elevation(np.clip(e, 0, np.pi / 2), p["elevation_rad"], rows)
         return ((1.0 - tau) * self.air_radiance * factor).reshape(shape)
 
+    def along(self, sight_m: np.ndarray) -> tuple[float, float]:
+        """(transmission, path radiance) along one sight-line vector (target minus sensor, metres)."""
+        sight = np.asarray(sight_m, dtype=np.float64)
+        dist = float(np.linalg.norm(sight))
+        el = float(np.arcsin(np.clip(sight[2] / max(dist, 1e-9), -1.0, 1.0)))
+        return float(self.transmission(dist, el)), float(self.path_radiance(dist, el))
+
     def at_sensor(self, target_radiance, range_m, elevation_rad=0.0) -> np.ndarray:
         """L_sensor = tau L_target + L_path."""
         return self.transmission(range_m, elevation_rad) * target_radiance + self.path_radiance(range_m, elevation_rad)

@@ -224,10 +224,7 @@ class SequenceRenderer:
             paths = {}
             for tid, track in tracks.items():  # LWIR path per target (LOWTRAN7 tables, simulator.physics.atmosphere)
                 sight = track.position_m[frame] - camera.origin_m[frame]
-                dist = float(np.linalg.norm(sight))
-                el = float(np.arcsin(np.clip(sight[2] / max(dist, 1e-9), -1.0, 1.0)))
-                paths[tid] = (dist, float(self.sky.thermal_sky.lwir.transmission(dist, el)),
-                              float(self.sky.thermal_sky.lwir.path_radiance(dist, el)))
+                paths[tid] = (float(np.linalg.norm(sight)), *self.sky.thermal_sky.lwir.along(sight))
             for key, tid, role in self._shape_keys:
                 track = tracks[tid]
                 verts, _ = geometry[tid][role]

@@ -118,6 +118,14 @@ def test_transmission_rises_with_elevation_and_falls_with_range():
     assert np.all(np.diff(lwir.transmission(np.array([10.0, 100.0, 1000.0, 10000.0, 30000.0]))) < 0)
 
 
+def test_along_a_sight_line_uses_its_range_and_elevation():
+    lwir = atm.LwirAtmosphere(290.0, 10.0)
+    tau, path = lwir.along(np.array([0.0, 800.0, 600.0]))
+    el = math.atan2(600.0, 800.0)
+    assert tau == pytest.approx(float(lwir.transmission(1000.0, el)))
+    assert path == pytest.approx(float(lwir.path_radiance(1000.0, el)))
+
+
 def test_path_radiance_is_emission_of_the_air_on_a_horizontal_path():
     lwir = _model("midlat_summer")
     r = np.array([100.0, 1000.0, 3000.0])
