@@ -117,6 +117,8 @@ def load_manifest(dataset_dir: Path) -> dict[str, Any]:
         manifest = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise UserInputError(f"{path}: not valid JSON: {exc}") from None
+    if not isinstance(manifest, dict):
+        raise UserInputError(f"{path}: expected a JSON object, got {type(manifest).__name__}")
     if manifest.get("format") != DATASET_FORMAT:
         raise UserInputError(f"{path}: format is {manifest.get('format')!r}, expected {DATASET_FORMAT!r}")
     return manifest
@@ -399,7 +401,7 @@ def verify_dataset(dataset_dir: str | Path, *, progress: bool = False) -> Verify
     root = Path(dataset_dir)
     manifest = load_manifest(root)
     report = VerifyReport(incomplete=not manifest.get("complete", False))
-    entries = manifest["sequences"]
+    entries = manifest_entries(manifest, root / MANIFEST)
     if progress:
         from rich.progress import track
 
@@ -418,13 +420,28 @@ def verify_dataset(dataset_dir: str | Path, *, progress: bool = False) -> Verify
     return report
 
 
+def manifest_entries(manifest: dict[str, Any], path: Path) -> list[dict[str, Any]]:
+    """The manifest's ``sequences`` list, each entry checked to name a plain sequence folder."""
+    entries = manifest.get("sequences")
+    if not isinstance(entries, list):
+        raise UserInputError(f"{path}: key 'sequences' is missing or not a list (not a complete evids manifest)")
+    for k, e in enumerate(entries):
+        name = e.get("name") if isinstance(e, dict) else None
+        if not isinstance(name, str) or not name or name in (".", "..") or "/" in name or "\\" in name:
+            raise UserInputError(f"{path}: sequences[{k}].name must be a plain folder name, got {name!r}")
+        split = e.get("split", "train")
+        if not isinstance(split, str) or not split or split in (".", "..") or "/" in split or "\\" in split:
+            raise UserInputError(f"{path}: sequences[{k}].split must be a plain folder name, got {split!r}")
+    return entries
+
+
 def dataset_sequences(dataset_dir: str | Path) -> list[dict[str, Any]]:
     """Manifest entries of a complete dataset, each with its ``path``."""
     root = Path(dataset_dir)
     manifest = load_manifest(root)
     if not manifest.get("complete"):
         raise UserInputError(f"{root}: the dataset is incomplete; re-run `evids generate` with the same arguments")
-    return [{**e, "path": root / SEQUENCES_DIR / e["name"]} for e in manifest["sequences"]]
+    return [{**e, "path": root / SEQUENCES_DIR / e["name"]} for e in manifest_entries(manifest, root / MANIFEST)]
 
 
 def export_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, annotate_every: int = 1,
