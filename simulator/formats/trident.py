@@ -573,7 +573,7 @@ def iter_trident(root: str | Path) -> Iterator[TridentSegment]:
 
 def assign_splits(clips: list[ClipFiles], test_fraction: float) -> dict[str, str]:
     """Clip id -> "Train"/"Test": per label, in clip order, clip j is Test when
-    ceil((j + 1) f) > ceil(j f) (evenly spread; the first clip of a label is Test when f > 0)."""
+    floor((j + 1) f + 1/2) > floor(j f + 1/2), so round(n f) of a label's n clips, evenly spread."""
     import math
 
     if not 0.0 <= test_fraction < 1.0:
@@ -582,7 +582,7 @@ def assign_splits(clips: list[ClipFiles], test_fraction: float) -> dict[str, str
     for label in LABELS:
         mine = [c for c in clips if c.label == label]
         for j, c in enumerate(mine):
-            test = math.ceil((j + 1) * test_fraction - 1e-9) > math.ceil(j * test_fraction - 1e-9)
+            test = math.floor((j + 1) * test_fraction + 0.5) > math.floor(j * test_fraction + 0.5)
             out[c.clip_id] = "Test" if test else "Train"
     return out
 

@@ -157,20 +157,23 @@ def test_export_public_layout_and_read_it_back(generated, tmp_path):
 
     out = export_dataset(generated, "trident", tmp_path / "pub", mfcc="trident", test_fraction=0.4, progress=False)
     names = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()}
-    # per label, clip j is Test when ceil((j+1) f) > ceil(j f): f = 0.4 -> drone clips 1, 3 and background clip 4
-    assert "Audio/Test/Drone/quad/1.wav" in names and "Audio/Train/Drone/quad/2.wav" in names
-    assert "Audio/Test/Drone/quad/3.wav" in names and "Audio/Test/Background/birds/4.wav" in names
-    assert "Video/Test/Drone/quad/Images/1_frame_1.jpg" in names and "Video/Test/Drone/quad/Images/1_frame_28.jpg" in names
-    assert "Video/Train/Drone/quad/Images_Extracted/2_frame_28.jpg" in names
-    assert "Video/Train/Drone/quad/Images_Extracted/2_frame_0.jpg" not in names
-    assert "RF_Spectrograms/Train/Drone/quad/Images_Spectrograms/2_frame_1.jpg" in names
-    assert "RF_Spectrograms/Test/Drone/quad/Images/1_frame_4.jpg" in names
-    assert {"Labels/Train/Drone/quad/2.json", "RF_IQ/Train/Drone/quad/2.sigmf-data", "manifest.json"} <= names
+    # per label, clip j is Test when floor((j+1) f + 1/2) > floor(j f + 1/2): f = 0.4 -> j = 1, i.e. drone
+    # clip 2 (of 1, 2, 3) and background clip 5 (of 4, 5)
+    audio = sorted(n for n in names if n.startswith("Audio/"))
+    assert audio == ["Audio/Test/Background/birds/5.wav", "Audio/Test/Drone/quad/2.wav",
+                     "Audio/Train/Background/birds/4.wav", "Audio/Train/Drone/quad/1.wav", "Audio/Train/Drone/quad/3.wav"]
+    assert "Video/Test/Drone/quad/Images/2_frame_1.jpg" in names and "Video/Test/Drone/quad/Images/2_frame_28.jpg" in names
+    assert "Video/Train/Drone/quad/Images_Extracted/1_frame_28.jpg" in names
+    assert "Video/Train/Drone/quad/Images_Extracted/1_frame_0.jpg" not in names
+    assert "Video/Train/Drone/quad/Images_Extracted/1_frame_29.jpg" not in names
+    assert "RF_Spectrograms/Train/Drone/quad/Images_Spectrograms/1_frame_1.jpg" in names
+    assert "RF_Spectrograms/Test/Drone/quad/Images/2_frame_4.jpg" in names
+    assert {"Labels/Train/Drone/quad/1.json", "RF_IQ/Train/Drone/quad/1.sigmf-data", "manifest.json"} <= names
     assert not any(n.endswith(".png") for n in names)
-    img = cv2.imread(str(out / "RF_Spectrograms/Test/Drone/quad/Images/1_frame_1.jpg"))
+    img = cv2.imread(str(out / "RF_Spectrograms/Test/Drone/quad/Images/2_frame_1.jpg"))
     assert img is not None and img.shape[:2] == (112, 112)
-    iq, _ = read_sigmf(out / "RF_IQ/Train/Drone/quad/2.sigmf-meta")
-    assert np.array_equal(iq, np.load(generated / "rf_iq/Drone/quad/2.npy"))
+    iq, _ = read_sigmf(out / "RF_IQ/Train/Drone/quad/1.sigmf-meta")
+    assert np.array_equal(iq, np.load(generated / "rf_iq/Drone/quad/1.npy"))
 
     src = TridentDataset(generated)
     pub = TridentDataset(out)
