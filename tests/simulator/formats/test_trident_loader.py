@@ -264,3 +264,22 @@ def test_generated_clip_missing_a_frame_is_refused(generated, tmp_path):
     (copy / "video" / "Drone" / "quad").rename(copy / "video" / "Drone" / "gone")
     with pytest.raises(FormatError, match="no video frames"):
         TridentDataset(copy)
+
+
+def test_webdataset_of_a_clip_set(generated, tmp_path):
+    from simulator.dataset.generate import export_dataset
+    from simulator.formats import webdataset as wdsfmt
+
+    out = export_dataset(generated, "webdataset", tmp_path / "wds", mfcc="trident", progress=False)
+    samples = list(wdsfmt.iter_samples(wdsfmt.shards(out, "all")))
+    ds = TridentDataset(generated, mfcc="trident")
+    segs = list(ds)
+    assert len(samples) == len(segs) == 20
+    for sample, seg in zip(samples, segs):
+        assert sample["__key__"] == f"{seg.clip_id.replace('/', '_')}_{seg.segment_index:02d}"
+        assert np.array_equal(np.load(__import__("io").BytesIO(sample["mfcc.npy"])), seg.audio_mfcc)
+        assert sample["json"]["mfcc"] == "trident" and sample["json"]["label_id"] == seg.label
+        assert sample["json"]["observability"] == seg.observability
+        assert sorted(k for k in sample if k.startswith("frame")) == [f"frame{k}.jpg" for k in range(7)]
+    with pytest.raises(Exception, match="exports to trident, webdataset only"):
+        export_dataset(generated, "mot", tmp_path / "mot", progress=False)
