@@ -28,7 +28,9 @@ def _import_trackeval():
     try:
         from trackeval import metrics
     except ImportError as exc:
-        raise ImportError("tracking metrics need the 'trackeval' package: pip install trackeval") from exc
+        raise ImportError("tracking metrics need the 'trackeval' package: pip install --no-deps trackeval==1.3.0 "
+                          "(plus pycocotools, tabulate; --no-deps keeps opencv-python from replacing the "
+                          "headless OpenCV)") from exc
     return metrics
 
 

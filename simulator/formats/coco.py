@@ -219,7 +219,7 @@ def validate_coco(data: Any, path: Path, *, strict: bool = True, skipped: Skippe
         frame = im.get("frame_id")
         if "frame_id" in im and (not _is_id(frame) or frame < 1):
             check.bad_row(f"images[{k}].frame_id", f"must be an integer >= 1, got {frame!r}")
-        elif videos and "video_id" in im and im["video_id"] not in video_ids:
+        elif videos and "video_id" in im and not (_is_id(im["video_id"]) and im["video_id"] in video_ids):
             check.bad_row(f"images[{k}].video_id", f"{im['video_id']!r} names no video")
         elif not isinstance(im.get("file_name", ""), str):
             check.bad_row(f"images[{k}].file_name", "must be a string")
@@ -230,9 +230,9 @@ def validate_coco(data: Any, path: Path, *, strict: bool = True, skipped: Skippe
     kept_anns = []
     for k, ann in enumerate(annotations):
         problem = None
-        if ann.get("image_id") not in image_ids:
+        if not (_is_id(ann.get("image_id")) and ann["image_id"] in image_ids):
             problem = (f"annotations[{k}].image_id", f"{ann.get('image_id')!r} names no image")
-        elif categories and ann.get("category_id") not in category_ids:
+        elif categories and not (_is_id(ann.get("category_id")) and ann["category_id"] in category_ids):
             problem = (f"annotations[{k}].category_id", f"{ann.get('category_id')!r} names no category")
         elif (why := box_problem(ann.get("bbox"))) is not None:
             problem = (f"annotations[{k}].bbox", why)

@@ -367,7 +367,10 @@ def _clip(label: str, scenario: str, number: str, audio: Path, frames: list[tupl
     if labels_json is not None:
         truth = read_json(labels_json)
         try:
-            expected = len(truth["segments"]["drone_present"])
+            present = truth["segments"]["drone_present"]
+            if not isinstance(present, list):
+                raise TypeError
+            expected = len(present)
         except (KeyError, TypeError):
             raise FormatError(labels_json, "key 'segments.drone_present'", "missing (per-segment ground truth)") from None
     have = _audio_segments(audio)
@@ -543,9 +546,11 @@ class TridentDataset:
 
         if clip.labels_json is None:
             return None
-        segments = read_json(clip.labels_json).get("segments")
+        data = read_json(clip.labels_json)
+        segments = data.get("segments") if isinstance(data, dict) else None
         keys = ("video_visible", "audio_audible", "rf_observable")
-        if not isinstance(segments, dict) or any(len(segments.get(k) or []) < clip.n_segments for k in keys):
+        if not isinstance(segments, dict) or any(not isinstance(segments.get(k), list) or len(segments[k]) < clip.n_segments
+                                                 for k in keys):
             raise FormatError(clip.labels_json, "key 'segments'", f"needs {', '.join(keys)} with {clip.n_segments} entries")
         return segments
 

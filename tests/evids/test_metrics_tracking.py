@@ -74,7 +74,7 @@ def test_hota_validation():
 def test_hota_import_error_message(monkeypatch):
     monkeypatch.setitem(sys.modules, "trackeval", None)
     monkeypatch.setitem(sys.modules, "trackeval.metrics", None)
-    with pytest.raises(ImportError, match="pip install trackeval"):
+    with pytest.raises(ImportError, match="pip install --no-deps trackeval==1.3.0"):
         hota([([1], BOX)], [([1], BOX)])
 
 

@@ -283,3 +283,21 @@ def test_webdataset_of_a_clip_set(generated, tmp_path):
         assert sorted(k for k in sample if k.startswith("frame")) == [f"frame{k}.jpg" for k in range(7)]
     with pytest.raises(Exception, match="exports to trident, webdataset only"):
         export_dataset(generated, "mot", tmp_path / "mot", progress=False)
+
+
+@pytest.mark.parametrize("labels,message", [
+    ("{not json", "not valid JSON"),
+    ("[1, 2]", "segments.drone_present"),
+    ('{"segments": {"drone_present": 3}}', "segments.drone_present"),
+    ('{"segments": {"drone_present": [1, 1, 1, 1], "video_visible": 5}}', "needs video_visible"),
+])
+def test_corrupt_labels_json(generated, tmp_path, labels, message):
+    import shutil
+
+    from simulator.formats.validation import FormatError
+
+    copy = tmp_path / "copy"
+    shutil.copytree(generated, copy)
+    (copy / "labels" / "Drone" / "quad" / "1.json").write_text(labels)
+    with pytest.raises(FormatError, match=message):
+        list(TridentDataset(copy))
