@@ -27,7 +27,12 @@ TAR_OPTIONS = {"mtime": 0.0, "user": "evids", "group": "evids", "mode": 0o444, "
 
 
 def _writer(folder: Path, split: str, shard_bytes: int):
-    import webdataset as wds
+    try:
+        import webdataset as wds
+    except ImportError:
+        from scenes.errors import UserInputError
+
+        raise UserInputError("the webdataset export needs the 'webdataset' package: pip install 'evids[formats]'") from None
 
     folder.mkdir(parents=True, exist_ok=True)
     pattern = str(folder / split).replace("%", "%%") + "/" + split.replace("%", "%%") + "-%06d.tar"
