@@ -286,3 +286,40 @@ def test_coco_broken_files(tmp_path):
     path.write_text('{"images": {}, "annotations": []}')
     with pytest.raises(FormatError, match="key 'images': must be a list of objects"):
         coco.load_coco(path, strict=False)
+
+
+def test_antiuav2021_video_miniature(tmp_path):
+    """The 2021 challenge layout: IR.mp4 / RGB.mp4 beside IR_label.json / RGB_label.json."""
+    import cv2
+
+    seq = tmp_path / "test-dev" / "20190925_124000_1_1"
+    seq.mkdir(parents=True)
+    for video, size, n in (("IR.mp4", (64, 48), 3), ("RGB.mp4", (96, 54), 3)):
+        writer = cv2.VideoWriter(str(seq / video), cv2.VideoWriter_fourcc(*"mp4v"), 25.0, size)
+        for i in range(n):
+            writer.write(np.full((size[1], size[0], 3), 40 * i, np.uint8))
+        writer.release()
+    (seq / "IR_label.json").write_text(json.dumps({"exist": [1, 1, 0], "gt_rect": [[1, 2, 3, 4], [2, 2, 3, 4], [0]]}))
+    (seq / "RGB_label.json").write_text(json.dumps({"exist": [1, 0, 0], "gt_rect": [[5, 6, 7, 8], [], []]}))
+    tracks = antiuav.load_dataset(tmp_path)["test-dev/20190925_124000_1_1"]
+    assert tracks["infrared"].video.name == "IR.mp4" and tracks["infrared"].boxes[2] is None
+    assert tracks["visible"].video.name == "RGB.mp4" and tracks["visible"].exist.tolist() == [1, 0, 0]
+    (seq / "RGB_label.json").write_text(json.dumps({"exist": [1, 0], "gt_rect": [[5, 6, 7, 8], []]}))
+    with pytest.raises(FormatError, match="3 video frames but 2 labels"):
+        antiuav.load_sequence(seq)
+
+
+def test_coco_in_mmuav_converter_style(tmp_path):
+    """MM-UAV's converter: annotations/val-ir.json, file_name from the root ('test/0001/...'), one category, conf."""
+    (tmp_path / "test" / "0001" / "ir_frame").mkdir(parents=True)
+    (tmp_path / "test" / "0001" / "ir_frame" / "0001.jpg").write_bytes(b"")
+    data = {"images": [{"file_name": "test/0001/ir_frame/0001.jpg", "id": 1, "frame_id": 1, "prev_image_id": -1,
+                        "next_image_id": -1, "video_id": 1, "height": 512, "width": 640}],
+            "annotations": [{"id": 1, "category_id": 1, "image_id": 1, "track_id": 1, "bbox": [274, 187, 18, 10],
+                             "conf": 1.0, "iscrowd": 0, "area": 180}],
+            "videos": [{"id": 1, "file_name": "0001"}], "categories": [{"id": 1, "name": "drone"}]}
+    (tmp_path / "annotations").mkdir()
+    (tmp_path / "annotations" / "val-ir.json").write_text(json.dumps(data))
+    video = coco.load_coco(tmp_path / "annotations" / "val-ir.json")
+    assert video.image_root == tmp_path and video.image_path(video.images[0]).is_file()
+    assert video.tracks(1) == {1: {1: [274.0, 187.0, 18.0, 10.0]}}
