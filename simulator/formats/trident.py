@@ -440,9 +440,10 @@ def _discover_public(root: Path, manifest, strict: bool, skipped) -> list[ClipFi
                 frames, rf = _indexed(video_dir, _VIDEO_RE), _indexed(rf_dir, _RF_RE)
                 for number in sorted(audio, key=int):
                     lj = root / PUBLIC_EXTRAS["labels"] / split / label / scenario / f"{number}.json"
+                    iq = root / PUBLIC_EXTRAS["rf_iq"] / split / label / scenario / f"{number}.sigmf-meta"
                     _add(clips, skipped, strict, lambda: _clip(
                         label, scenario, number, audio[number], frames.get(number), rf.get(number), video_dir, rf_dir,
-                        lj if lj.is_file() else None, expected, split, None))
+                        lj if lj.is_file() else None, expected, split, iq if iq.is_file() else None))
     return clips
 
 
@@ -567,6 +568,18 @@ class TridentDataset:
                               clip_id=clip.clip_id, segment_index=s, observability=obs)
 
 
+def load_iq(clip: ClipFiles) -> np.ndarray | None:
+    """The clip's saved I/Q, complex64 (segments, samples): the generated ``.npy`` or the public
+    export's SigMF recording; None when the dataset has none."""
+    if clip.iq is None:
+        return None
+    if clip.iq.suffix == ".npy":
+        return np.load(clip.iq)[: clip.n_segments]
+    from simulator.formats.sigmf import read_sigmf
+
+    return read_sigmf(clip.iq)[0][: clip.n_segments]
+
+
 def iter_trident(root: str | Path) -> Iterator[TridentSegment]:
     """Every aligned segment under ``root`` in clip order."""
     yield from TridentDataset(root)
@@ -640,7 +653,7 @@ def export_public(src_root: str | Path, out: str | Path, *, mfcc: str = "evids",
             dest.write_bytes(clip.labels_json.read_bytes())
         if clip.iq is not None and rf_cfg:
             info = json.loads(clip.labels_json.read_text()).get("rf", {}) if clip.labels_json else {}
-            iq = np.load(clip.iq)[: clip.n_segments].astype(np.complex64)
+            iq = load_iq(clip).astype(np.complex64)
             starts = info.get("capture_start_s") or [s * SEGMENT_S for s in range(iq.shape[0])]
             base = out / PUBLIC_EXTRAS["rf_iq"] / rel / clip.number
             base.parent.mkdir(parents=True, exist_ok=True)

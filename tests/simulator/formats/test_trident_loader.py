@@ -301,3 +301,15 @@ def test_corrupt_labels_json(generated, tmp_path, labels, message):
     (copy / "labels" / "Drone" / "quad" / "1.json").write_text(labels)
     with pytest.raises(FormatError, match=message):
         list(TridentDataset(copy))
+
+
+def test_load_iq_from_both_layouts(generated, tmp_path):
+    from simulator.dataset.generate import export_dataset
+    from simulator.formats.trident import load_iq
+
+    out = export_dataset(generated, "trident", tmp_path / "pub", progress=False)
+    src = {c.clip_id: c for c in TridentDataset(generated).clips}
+    for clip in TridentDataset(out).clips:
+        twin = src[clip.clip_id.split("/", 1)[1]]
+        assert clip.iq.name.endswith(".sigmf-meta") and twin.iq.suffix == ".npy"
+        assert np.array_equal(load_iq(clip), load_iq(twin)) and load_iq(clip).shape == (4, 112 * 40)
