@@ -38,6 +38,7 @@ from typing import Any, Iterator, Literal, Protocol
 import numpy as np
 
 from simulator.physics.acoustics import AUDIO_SAMPLE_RATE_HZ, write_wav
+from simulator.formats.validation import FormatError, Skipped, SkippedRowsWarning, read_json
 from simulator.physics.rf import RFCapture, RFConfig
 
 SEGMENT_S = 0.25
@@ -280,15 +281,11 @@ def is_public_layout(root: Path) -> bool:
 
 
 def read_manifest(root: Path) -> dict[str, Any] | None:
-    from simulator.formats.validation import read_json
-
     path = Path(root) / MANIFEST
     if not path.is_file():
         return None
     data = read_json(path)
     if not isinstance(data, dict):
-        from simulator.formats.validation import FormatError
-
         raise FormatError(path, "top level", "expected an object")
     return data
 
@@ -332,8 +329,6 @@ def _audio_files(folder: Path) -> dict[str, Path]:
 def _audio_segments(path: Path) -> int:
     import soundfile
 
-    from simulator.formats.validation import FormatError
-
     try:
         info = soundfile.info(str(path))
     except (RuntimeError, soundfile.LibsndfileError) as exc:
@@ -342,8 +337,6 @@ def _audio_segments(path: Path) -> int:
 
 
 def _consecutive(items: list[tuple[int, Path]], what: str, folder: Path, need: int) -> list[Path]:
-    from simulator.formats.validation import FormatError
-
     if not items:
         raise FormatError(folder, what, "no files")
     start = items[0][0]
@@ -362,7 +355,6 @@ def _clip(label: str, scenario: str, number: str, audio: Path, frames: list[tupl
           rf: list[tuple[int, Path]] | None, video_dir: Path, rf_dir: Path, labels_json: Path | None,
           expected: int | None, split: str | None, iq: Path | None) -> ClipFiles:
     """One clip with its segment count S and every modality checked against S."""
-    from simulator.formats.validation import FormatError, read_json
 
     if labels_json is not None:
         truth = read_json(labels_json)
@@ -390,8 +382,6 @@ def _clip(label: str, scenario: str, number: str, audio: Path, frames: list[tupl
 
 
 def _add(clips: list[ClipFiles], skipped, strict: bool, make) -> None:
-    from simulator.formats.validation import FormatError
-
     try:
         clips.append(make())
     except FormatError as err:
@@ -453,8 +443,6 @@ def _natural(name: str) -> list:
 
 def discover_clips(root: str | Path, *, strict: bool = True, skipped=None) -> list[ClipFiles]:
     """All clips under ``root`` (generated or public layout), each checked; sorted by layout order."""
-    from simulator.formats.validation import Skipped
-
     root = Path(root)
     skipped = skipped if skipped is not None else Skipped()
     manifest = read_manifest(root)
@@ -469,8 +457,6 @@ def discover_clips(root: str | Path, *, strict: bool = True, skipped=None) -> li
 
 def _read_image(path: Path, grayscale_ok: bool) -> np.ndarray:
     import cv2
-
-    from simulator.formats.validation import FormatError
 
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None:
@@ -491,8 +477,6 @@ class TridentDataset:
     lists them in ``skipped``."""
 
     def __init__(self, root: str | Path, *, mfcc: str | None = None, strict: bool = True):
-        from simulator.formats.validation import Skipped
-
         self.root = Path(root)
         if mfcc is not None and mfcc not in MFCC_PIPELINES:
             raise ValueError(f"mfcc must be one of {', '.join(MFCC_PIPELINES)}, got {mfcc!r}")
@@ -500,8 +484,6 @@ class TridentDataset:
         self.clips = discover_clips(self.root, strict=strict, skipped=self.skipped)
         if self.skipped:
             import warnings
-
-            from simulator.formats.validation import SkippedRowsWarning
 
             warnings.warn(f"{self.root}: skipped {len(self.skipped)} bad clip(s) (strict=False); first: "
                           f"{self.skipped.reasons[0]}", SkippedRowsWarning, stacklevel=2)
@@ -531,8 +513,6 @@ class TridentDataset:
     def _mfcc(self, clip: ClipFiles) -> np.ndarray:
         import soundfile
 
-        from simulator.formats.validation import FormatError
-
         try:
             if self.mfcc_pipeline == "trident":
                 return mfcc_trident(clip.audio, clip.n_segments)
@@ -543,8 +523,6 @@ class TridentDataset:
 
     @staticmethod
     def _truth(clip: ClipFiles) -> dict | None:
-        from simulator.formats.validation import FormatError, read_json
-
         if clip.labels_json is None:
             return None
         data = read_json(clip.labels_json)
