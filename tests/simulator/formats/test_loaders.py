@@ -137,7 +137,8 @@ ANTIUAV_BROKEN = [
     ("not an object", "[1, 2]", "top level: expected an object"),
     ("missing gt_rect", '{"exist": [1, 1]}', "key 'gt_rect': missing"),
     ("exist not a list", '{"exist": 1, "gt_rect": []}', "key 'exist': must be a list"),
-    ("length mismatch", '{"exist": [1, 0, 1], "gt_rect": [[1, 2, 3, 4], [], []]}', "3 exist flags but 3 gt_rect|frame count"),
+    ("length mismatch", '{"exist": [1, 0, 1], "gt_rect": [[1, 2, 3, 4], []]}', "3 exist flags but 2 gt_rect entries"),
+    ("labels vs frames", '{"exist": [1, 0, 0], "gt_rect": [[1, 2, 3, 4], [], []]}', "frame count: 2 frames but 3 labels"),
 ]
 
 
