@@ -104,11 +104,6 @@ class KernelFilter:
         return out[2 * r:2 * r + h, 2 * r:2 * r + w]
 
 
-def apply_kernel(image: np.ndarray, kernel: np.ndarray) -> np.ndarray:
-    """Convolve a (H, W) image with a centred odd kernel (one-off; sensors keep a KernelFilter)."""
-    return KernelFilter(kernel)(image)
-
-
 # --- motion ---------------------------------------------------------------------------------------
 def trail_weights(length_samples: int, kind: str, time_constant_s: float, window_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Sample times (fraction of the window back in time, 0..1) and normalised weights of the
