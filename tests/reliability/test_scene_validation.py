@@ -62,7 +62,7 @@ def test_refused_with_the_field_named(case, mutate, field):
 ACCEPTED = [
     ("plain name with dots and dashes", _set("name", "my-scene_v1.2")),
     ("hot part within range", _set("targets.0.thermal", {"mode": "absolute", "absolute_k": {"body": 600.0}})),
-    ("coarse but sufficient scale", _set("camera_rig.thermal.kelvin_per_count", 0.006)),
+    ("coarse but sufficient scale", _set("camera_rig.thermal.kelvin_per_count", 0.0065)),
     ("camera looking steeply up", _fixed_camera([0, 0, 1.5], [5, 0, 500.0])),
 ]
 
@@ -95,6 +95,7 @@ def test_thermal_scale_is_refused_exactly_when_the_ceiling_clips(kpc):
     hottest = data["atmosphere"]["air_temperature_k"] + max(
         [0.0] + list(data["targets"][0]["thermal"]["offsets_k"].values()))
     clips = 65535 * kpc < hottest + 20.0
+    clips |= 65535 * kpc < 400.0  # the camera model's own floor (scenes.schema.ThermalCamera)
     try:
         scenario_from_dict(data)
         assert not clips
