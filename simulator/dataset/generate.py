@@ -447,7 +447,9 @@ def _generate_locked(out: Path, config: GenerationConfig, seed: int, tasks: list
 
     wanted = {t["name"] for t in tasks}
     for child in seq_root.iterdir():
-        if child.is_dir() and child.name not in wanted:
+        if child.is_symlink():  # never followed: the link goes, its target stays
+            child.unlink()
+        elif child.is_dir() and child.name not in wanted:
             shutil.rmtree(child)
     todo = [t for t in tasks if not _sequence_ok(seq_root / t["name"], t, recorded.get(t["name"]))]
     result = GenerationResult(out_dir=out, skipped=[t["name"] for t in tasks if t not in todo], notes=notes)
