@@ -240,9 +240,10 @@ def write_marker(folder: Path, kind: str) -> None:
 
 
 @contextmanager
-def atomic_folder(final: Path, *, overwrite: bool = False, kind: str = "folder") -> Iterator[Path]:
-    """Yield a temporary sibling folder (named with this run's id); on success mark it and rename it
-    to ``final``; on any error remove it and leave ``final`` untouched.
+def atomic_folder(final: Path, *, overwrite: bool = False, kind: str | None = None) -> Iterator[Path]:
+    """Yield a temporary sibling folder (named with this run's id); on success mark it (if ``kind``
+    is given: a command's published output, not a folder inside a public-format layout) and rename
+    it to ``final``; on any error remove it and leave ``final`` untouched.
 
     An existing ``final`` is replaced only if ``overwrite`` and it is empty or an evids output
     (:func:`is_evids_output`); otherwise FileExistsError (before any work, and again at the rename).
@@ -257,7 +258,8 @@ def atomic_folder(final: Path, *, overwrite: bool = False, kind: str = "folder")
     tmp.mkdir()
     try:
         yield tmp
-        write_marker(tmp, kind)
+        if kind is not None:
+            write_marker(tmp, kind)
         _check_replaceable(final, overwrite)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

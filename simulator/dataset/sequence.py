@@ -11,7 +11,14 @@ import numpy as np
 
 from scenes.loader import scenario_to_yaml
 from scenes.schema import Scenario
-from simulator.files import atomic_folder, package_versions, remove_output, temp_sibling, write_hashes
+from simulator.files import (
+    atomic_folder,
+    package_versions,
+    remove_output,
+    temp_sibling,
+    write_hashes,
+    write_marker,
+)
 from simulator.formats.native import FORMAT_VERSION, frame_name, write_json, write_png
 from simulator.physics.timeline import Timeline, build_timeline
 from simulator.render.labels import CLASS_OF_KIND, frame_labels
@@ -179,6 +186,8 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                 remove_output(out_dir / "antiuav" / f"{scenario.name}_visible")
 
             ir, vis = export_antiuav(staging, out_dir / "antiuav", scenario.name)
+            write_marker(ir, "render antiuav")  # so a later `render --overwrite` may replace them
+            write_marker(vis, "render antiuav")
             written["antiuav"], written["antiuav_visible"] = ir, vis
         if preview:
             from simulator.dataset.preview import contact_sheet
