@@ -9,6 +9,10 @@ import pytest
 from scenes.errors import UserInputError
 from simulator.dataset import trident as tr
 
+# a continuous video link inside the receiver window, so every short capture holds drone RF
+# (the realistic presets hop: most 2.5 ms captures hold 0-1 control bursts, see tests/simulator/physics/test_rf.py)
+ALWAYS_ON_LINK = {"kind": "ofdm", "name": "video", "role": "video", "tx_power_dbm": 23.0, "bandwidth_hz": 9e6,
+                  "subcarrier_spacing_hz": 15e3, "channel_centres_hz": [2440e6], "duty": 1.0, "burst_range_s": [1e-3, 2e-3]}
 RIG_FIXED = {"position_m": [0, 0, 1.5], "look_at_m": [0, 80, 20], "rgb": {"hfov_deg": 30}}
 
 
@@ -22,7 +26,7 @@ def _hover(name, center, kind="quadcopter"):
 
 def _config(clips, **kw):
     base = {"name": "tiny", "clip_duration_s": 1.0, "save_iq": True, "clips": clips,
-            "rf": {"capture_samples": 112 * 40, "wifi_rx_dbm": -70.0}}
+            "rf": {"capture_samples": 112 * 40, "wifi_rx_dbm": -70.0, "links": [ALWAYS_ON_LINK]}}
     base.update(kw)
     return tr.load_trident_config(base)
 
