@@ -587,9 +587,9 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
         raise ValueError(f"kind: unknown target kind {track.kind!r}")
     ground = {}
     if ground_factor is not None:
-        ground = dict(ground_factor=ground_factor, source_height_m=np.interp(samples, coarse, pos_c[:, 2]),
-                      receiver_height_m=float(np.mean(mic_c[:, 2])),
-                      horizontal_range_m=np.interp(samples, coarse, np.linalg.norm((pos_c - mic_c)[:, :2], axis=-1)))
+        ground = {"ground_factor": ground_factor, "source_height_m": np.interp(samples, coarse, pos_c[:, 2]),
+                  "receiver_height_m": float(np.mean(mic_c[:, 2])),
+                  "horizontal_range_m": np.interp(samples, coarse, np.linalg.norm((pos_c - mic_c)[:, :2], axis=-1))}
     return propagate(src, ret.range_m, sample_rate_hz, air_temperature_k, relative_humidity, **ground), ret.range_m
 
 
@@ -711,7 +711,7 @@ def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, d
         duration_s = float(times[-1] - times[0]) + step
     if not duration_s > 0:
         raise ValueError(f"duration_s must be > 0, got {duration_s}")
-    n = int(round(duration_s * sample_rate_hz))
+    n = round(duration_s * sample_rate_hz)
     atm = timeline.scenario.atmosphere
     wingbeats = {t.name: t.wingbeat_hz for t in timeline.scenario.targets}
     mic = np.asarray(timeline.microphone_position_m, dtype=np.float64)

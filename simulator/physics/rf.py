@@ -40,7 +40,6 @@ RAMP_S = 10e-6                     # burst power ramp-up/down time of the hoppin
 DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
 _EMITTER_WIFI, _EMITTER_BT, _EMITTER_NOISE = 2, 3, 4
 _PART_SCHEDULE, _PART_WAVEFORM, _PART_FADING = 0, 1, 2
-BT_CHANNELS_HZ = tuple(2402e6 + 1e6 * k for k in range(79))
 # fields of the first RF model (fixed 8-channel hopping, one video link); replaced by ``links``
 _LEGACY_FIELDS = ("control_channels_hz", "control_bandwidth_hz", "control_slot_s", "control_burst_s",
                   "control_eirp_dbm", "video_offset_hz", "video_bandwidth_hz", "video_eirp_dbm", "video_duty")
@@ -86,7 +85,7 @@ class RFConfig(BaseModel):
         return data
 
     @model_validator(mode="after")
-    def _check_links(self) -> "RFConfig":
+    def _check_links(self) -> RFConfig:
         presets = [rf_links.link_preset(x) if isinstance(x, str) else x for x in self.links]
         names = [p.name for p in presets]
         if len(set(names)) != len(names):
@@ -137,44 +136,6 @@ def _unit_phasor(phase: np.ndarray) -> np.ndarray:
     return out
 
 
-def fhss_bursts(rng: np.random.Generator, capture_start_s: np.ndarray, n_samples: int, sample_rate_hz: float,
-                channels_hz: np.ndarray, slot_s: float, burst_s: float, symbol_rate_hz: float,
-                occupancy: float = 1.0, clip_duration_s: float = 10.0) -> tuple[np.ndarray, np.ndarray]:
-    """Unit-power frequency-hopping CPFSK bursts (h = 0.5, linear frequency transitions, 10 us ramps).
-
-    One burst of ``burst_s`` at the start of every ``slot_s`` slot, on a channel drawn per slot
-    (a slot is used with probability ``occupancy``). Returns the (S, N) complex64 signal and the
-    (S, N) bool burst gate. Channels outside the sampled band are not received (gate off).
-    """
-    n_slots = int(np.ceil((clip_duration_s + 1.0) / slot_s))
-    hop = rng.integers(0, len(channels_hz), size=n_slots)
-    used = rng.random(n_slots) < occupancy
-    t = capture_start_s[:, None] + np.arange(n_samples)[None, :] / sample_rate_hz
-    slot = np.minimum((t / slot_s).astype(np.int64), n_slots - 1)
-    channel = np.asarray(channels_hz, dtype=np.float64)[hop[slot]]
-    in_band = np.abs(channel) < 0.5 * sample_rate_hz - symbol_rate_hz
-    in_slot = t - slot * slot_s
-    gate = (in_slot < burst_s) & used[slot] & in_band
-    # raised-cosine power ramp at each burst edge (as transmitters do) limits spectral splatter
-    ramp = np.clip(np.minimum(in_slot, burst_s - in_slot) / RAMP_S, 0.0, 1.0)
-    envelope = np.sin(0.5 * np.pi * ramp).astype(np.float32) ** 2
-    sps = sample_rate_hz / symbol_rate_hz
-    n_sym = int(np.ceil(n_samples / sps)) + 2
-    bits = rng.integers(0, 2, size=(capture_start_s.size, n_sym)).astype(np.float32) * 2 - 1
-    # linear transitions between symbol values = NRZ convolved with a one-symbol boxcar
-    sym_pos = np.arange(n_samples) / sps
-    idx = sym_pos.astype(np.int64)
-    frac = (sym_pos - idx).astype(np.float32)
-    nrz = bits[:, idx] * (1 - frac) + bits[:, idx + 1] * frac
-    deviation_hz = 0.25 * symbol_rate_hz                      # modulation index 0.5
-    inst_hz = channel + deviation_hz * nrz
-    phase = 2 * np.pi * np.cumsum(inst_hz, axis=1) / sample_rate_hz
-    phase += 2 * np.pi * rng.random((capture_start_s.size, 1))
-    sig = np.zeros(gate.shape, dtype=np.complex64)
-    sig[gate] = _unit_phasor(phase[gate]) * envelope[gate]      # only burst samples need a phasor
-    return sig, gate
-
-
 def ofdm_bursts(rng: np.random.Generator, capture_start_s: np.ndarray, n_samples: int, sample_rate_hz: float,
                 offset_hz: float, bandwidth_hz: float, duty: float, burst_range_s: tuple[float, float],
                 subcarrier_step: int = 1, clip_duration_s: float = 10.0) -> tuple[np.ndarray, np.ndarray]:
@@ -185,8 +146,8 @@ def ofdm_bursts(rng: np.random.Generator, capture_start_s: np.ndarray, n_samples
     separated by random gaps giving the mean ``duty``; gating is per OFDM symbol (256 + 64 CP).
     """
     spacing = sample_rate_hz / OFDM_FFT
-    centre_bin = int(round(offset_hz / spacing))
-    half = int(round(bandwidth_hz / spacing / 2 / subcarrier_step))
+    centre_bin = round(offset_hz / spacing)
+    half = round(bandwidth_hz / spacing / 2 / subcarrier_step)
     bins = centre_bin + subcarrier_step * np.concatenate([np.arange(-half, 0), np.arange(1, half + 1)])
     n_nominal = max(bins.size, 1)                     # power is shared by all nominal subcarriers
     bins = bins[np.abs(bins) < 0.45 * OFDM_FFT]
@@ -332,11 +293,11 @@ def ofdm_waveform(rng: np.random.Generator, n_rows: int, n_samples: int, sample_
     ``cp_fraction`` of it, DC nulled. Unit power when the whole band is received; subcarriers
     outside the receiver passband are dropped, so the power is the received fraction (returned).
     """
-    fft = max(int(round(sample_rate_hz / subcarrier_spacing_hz)), 16)
-    cp = int(round(cp_fraction * fft))
+    fft = max(round(sample_rate_hz / subcarrier_spacing_hz), 16)
+    cp = round(cp_fraction * fft)
     spacing = sample_rate_hz / fft
-    centre_bin = int(round(offset_hz / spacing))
-    half = max(int(round(bandwidth_hz / spacing / 2)), 1)
+    centre_bin = round(offset_hz / spacing)
+    half = max(round(bandwidth_hz / spacing / 2), 1)
     bins = centre_bin + np.concatenate([np.arange(-half, 0), np.arange(1, half + 1)])
     n_nominal = bins.size
     bins = bins[np.abs(bins * spacing) < passband_half_hz]
@@ -425,6 +386,40 @@ def _annotation(cfg: RFConfig, label: str, role: str, sample_start: int, count: 
             "core:label": label, "evids:role": role, "evids:snr_db": round(float(snr_db), 2)}
 
 
+def _write_burst(row: np.ndarray, cfg: RFConfig, preset: rf_links.FhssPreset, rng: np.random.Generator,
+                 capture_start_s: float, start_s: float, duration_s: float, centre_hz: float,
+                 amplitude: complex) -> tuple[int, int] | None:
+    """Add one hop burst (its part inside the capture) to ``row``; returns its sample span or None."""
+    fs, n = cfg.sample_rate_hz, row.size
+    a = max(0, int(np.ceil((start_s - capture_start_s) * fs)))
+    e = min(n, int(np.ceil((start_s + duration_s - capture_start_s) * fs)))
+    if e <= a:
+        return None
+    t_in = (np.arange(a, e) / fs + capture_start_s) - start_s
+    offset = centre_hz - cfg.center_frequency_hz
+    if preset.modulation == "lora":
+        wave = lora_chirps(rng, t_in, fs, offset, preset.occupied_bandwidth_hz, preset.spreading_factor)
+    elif preset.modulation == "gfsk":
+        wave = gfsk_burst(rng, e - a, fs, offset, preset.symbol_rate_hz)
+    else:
+        wave = ofdm_waveform(rng, 1, e - a, fs, offset, preset.occupied_bandwidth_hz, preset.subcarrier_spacing_hz,
+                             144 / 2048, 0.5 * cfg.passband_fraction * fs)[0][0]
+    row[a:e] += wave * _ramp(t_in, duration_s) * np.complex64(amplitude)
+    return a, e
+
+
+def _background_fhss(cfg: RFConfig, preset: rf_links.FhssPreset, rx_dbm: float, starts: np.ndarray,
+                     duration_s: float, rng: np.random.Generator, iq: np.ndarray) -> None:
+    """Add a hopping interferer received at a fixed power (e.g. Bluetooth) to ``iq`` in place."""
+    sched = rf_links.fhss_schedule(preset, rng, duration_s)
+    lo, hi = cfg.passband_hz
+    visible = (sched.centre_hz >= lo) & (sched.centre_hz <= hi)
+    amp = np.sqrt(10 ** (rx_dbm / 10))
+    for s, idx in enumerate(rf_links.bursts_in_windows(sched, starts, cfg.capture_s)):
+        for b in idx[visible[idx]]:
+            _write_burst(iq[s], cfg, preset, rng, starts[s], sched.start_s[b], sched.duration_s[b], sched.centre_hz[b], amp)
+
+
 def _fhss_link(cfg: RFConfig, preset: rf_links.FhssPreset, geo: _Geometry, starts: np.ndarray, duration_s: float,
                rngs: tuple[np.random.Generator, ...], label: str) -> _LinkResult:
     g_sched, g_wave, g_fade = rngs
@@ -447,37 +442,22 @@ def _fhss_link(cfg: RFConfig, preset: rf_links.FhssPreset, geo: _Geometry, start
                                                 preset.tx_antenna))
     for s, idx in enumerate(rf_links.bursts_in_windows(sched, starts, cfg.capture_s)):
         idx = idx[visible[idx]]
-        bursts[s] = idx.size
         if not idx.size:
             continue
-        gain = _path_gain(cfg, geo, np.full(idx.size, s), sched.centre_hz[idx], preset.tx_antenna)
+        p_rx = p_tx_mw * _path_gain(cfg, geo, np.full(idx.size, s), sched.centre_hz[idx], preset.tx_antenna)
         for j, b in enumerate(idx):
-            t0, dur, centre = sched.start_s[b], sched.duration_s[b], sched.centre_hz[b]
-            a = max(0, int(np.ceil((t0 - starts[s]) * fs)))
-            e = min(n, int(np.ceil((t0 + dur - starts[s]) * fs)))
-            if e <= a:
-                bursts[s] -= 1
+            span = _write_burst(sig[s], cfg, preset, g_wave, starts[s], sched.start_s[b], sched.duration_s[b],
+                                sched.centre_hz[b], np.sqrt(p_rx[j]) * fades[b])
+            if span is None:
                 continue
-            t_in = (np.arange(a, e) / fs + starts[s]) - t0
-            offset = centre - cfg.center_frequency_hz
-            if preset.modulation == "lora":
-                wave, frac = lora_chirps(g_wave, t_in, fs, offset, preset.occupied_bandwidth_hz,
-                                         preset.spreading_factor), 1.0
-            elif preset.modulation == "gfsk":
-                wave, frac = gfsk_burst(g_wave, e - a, fs, offset, preset.symbol_rate_hz), 1.0
-            else:
-                rows, frac = ofdm_waveform(g_wave, 1, e - a, fs, offset, preset.occupied_bandwidth_hz,
-                                           preset.subcarrier_spacing_hz, 144 / 2048, 0.5 * cfg.passband_fraction * fs)
-                wave = rows[0]
-            p_rx = p_tx_mw * gain[j]
-            amp = np.complex64(np.sqrt(p_rx) * fades[b])
-            sig[s, a:e] += wave * _ramp(t_in, dur) * amp
+            a, e = span
+            bursts[s] += 1
             on[s, a:e] = True
-            burst_snr = 10 * np.log10(max(p_rx * abs(fades[b]) ** 2, 1e-300)
+            burst_snr = 10 * np.log10(max(p_rx[j] * abs(fades[b]) ** 2, 1e-300)
                                       / (noise_mw * preset.occupied_bandwidth_hz / fs))
             snr[s] = max(snr[s], burst_snr)
-            notes.append(_annotation(cfg, label, preset.role, s * n + a, e - a, centre, preset.occupied_bandwidth_hz,
-                                     burst_snr))
+            notes.append(_annotation(cfg, label, preset.role, s * n + a, e - a, sched.centre_hz[b],
+                                     preset.occupied_bandwidth_hz, burst_snr))
     return _LinkResult(sig, on, bursts, snr, budget, notes)
 
 
@@ -587,10 +567,8 @@ def synthesize_rf(timeline, seed: int, capture_start_s: np.ndarray, *, config: R
         # rx power refers to the whole 20 MHz channel; the receiver only passes the part in its window
         iq += wifi * np.float32(np.sqrt(10 ** (cfg.wifi_rx_dbm / 10)))
     if cfg.bluetooth_rx_dbm is not None:
-        bt_offsets = np.asarray(BT_CHANNELS_HZ) - cfg.center_frequency_hz
-        bt, _ = fhss_bursts(rng_for(seed, "rf", *stream_indices, _EMITTER_BT), starts, n, fs, bt_offsets, 625e-6,
-                            366e-6, 1e6, occupancy=0.3, clip_duration_s=duration)
-        iq += bt * np.float32(np.sqrt(10 ** (cfg.bluetooth_rx_dbm / 10)))
+        _background_fhss(cfg, rf_links.BLUETOOTH, cfg.bluetooth_rx_dbm, starts, duration,
+                         rng_for(seed, "rf", *stream_indices, _EMITTER_BT), iq)
     notes.sort(key=lambda a: (a["core:sample_start"], a["core:label"]))
     return RFCapture(config=cfg, capture_start_s=starts, iq=iq, spectrogram_dbm=spectrogram_dbm(iq, fs),
                      link_active=link_active, link_rx_dbm=link_dbm, control_snr_db=ctrl_snr,

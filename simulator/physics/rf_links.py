@@ -11,7 +11,7 @@ time and frequency (:func:`bursts_in_windows`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -54,6 +54,7 @@ class FhssPreset(_Preset):
     packet_rate_hz: float = Field(gt=0)
     packet_s: float = Field(gt=0)
     packets_per_hop: int = Field(default=1, ge=1)
+    occupancy: float = Field(default=1.0, gt=0.0, le=1.0, description="share of packet slots used")
     modulation: Literal["lora", "gfsk", "ofdm"]
     occupied_bandwidth_hz: float = Field(gt=0)
     spreading_factor: int = 6                 # lora
@@ -77,7 +78,7 @@ class OfdmPreset(_Preset):
     burst_range_s: tuple[float, float]
 
 
-LinkPreset = Annotated[Union[FhssPreset, OfdmPreset], Field(discriminator="kind")]
+LinkPreset = Annotated[FhssPreset | OfdmPreset, Field(discriminator="kind")]
 
 
 def _centres(bandwidth_hz: float, step_hz: float) -> tuple[float, ...]:
@@ -86,8 +87,8 @@ def _centres(bandwidth_hz: float, step_hz: float) -> tuple[float, ...]:
     return tuple(float(c) for c in np.arange(lo, hi + 1.0, step_hz))
 
 
-_ELRS = dict(role="control", first_channel_hz=2400.4e6, channel_spacing_hz=1e6, n_channels=80, modulation="lora",
-             occupied_bandwidth_hz=812.5e3, packets_per_hop=4, tx_power_dbm=20.0)
+_ELRS = {"role": "control", "first_channel_hz": 2400.4e6, "channel_spacing_hz": 1e6, "n_channels": 80, "modulation": "lora",
+             "occupied_bandwidth_hz": 812.5e3, "packets_per_hop": 4, "tx_power_dbm": 20.0}
 
 LINK_PRESETS: dict[str, LinkPreset] = {
     # ExpressLRS 2.4 GHz-like: LoRa BW 812.5 kHz, 80 x 1 MHz channels from 2400.4 MHz, hop every 4 packets,
@@ -123,6 +124,12 @@ LINK_PRESETS: dict[str, LinkPreset] = {
 }
 
 
+# background Bluetooth (not a drone link): 79 x 1 MHz from 2402 MHz, 1600 slots/s, 366 us packets, 30 % used
+BLUETOOTH = FhssPreset(name="bluetooth", role="control", first_channel_hz=2402e6, channel_spacing_hz=1e6, n_channels=79,
+                       packet_rate_hz=1600.0, packet_s=366e-6, modulation="gfsk", symbol_rate_hz=1e6,
+                       occupied_bandwidth_hz=1e6, tx_power_dbm=0.0, occupancy=0.3)
+
+
 def link_preset(name: str) -> LinkPreset:
     if name not in LINK_PRESETS:
         raise ValueError(f"links: unknown link preset {name!r}; choose from {sorted(LINK_PRESETS)}")
@@ -153,8 +160,12 @@ def fhss_schedule(preset: FhssPreset, rng: np.random.Generator, duration_s: floa
     n_hops = int(hop[-1]) + 1
     cycles = int(np.ceil(n_hops / preset.n_channels))
     order = np.concatenate([rng.permutation(preset.n_channels) for _ in range(cycles)])[:n_hops]
-    return Schedule(start_s=starts, duration_s=np.full(n_packets, preset.packet_s),
-                    centre_hz=preset.channels_hz[order[hop]], bandwidth_hz=preset.occupied_bandwidth_hz)
+    sched = Schedule(start_s=starts, duration_s=np.full(n_packets, preset.packet_s),
+                     centre_hz=preset.channels_hz[order[hop]], bandwidth_hz=preset.occupied_bandwidth_hz)
+    if preset.occupancy < 1.0:
+        used = rng.random(n_packets) < preset.occupancy
+        sched = Schedule(sched.start_s[used], sched.duration_s[used], sched.centre_hz[used], sched.bandwidth_hz)
+    return sched
 
 
 def ofdm_schedule(preset: OfdmPreset, rng: np.random.Generator, duration_s: float) -> Schedule:

@@ -238,7 +238,7 @@ def test_iso9613_ground_attenuation_hand_values():
 def test_ground_effect_sign_and_size_on_a_tone():
     n = FS
     tone = np.sin(2 * np.pi * 500.0 * np.arange(n) / FS)
-    kw = dict(source_height_m=np.full(n, 50.0), receiver_height_m=1.5, horizontal_range_m=np.full(n, 200.0))
+    kw = {"source_height_m": np.full(n, 50.0), "receiver_height_m": 1.5, "horizontal_range_m": np.full(n, 200.0)}
     free = ac.propagate(tone, np.full(n, 206.2), FS, 293.15, 0.7)
     hard = ac.propagate(tone, np.full(n, 206.2), FS, 293.15, 0.7, ground_factor=0.0, **kw)
     soft = ac.propagate(tone, np.full(n, 206.2), FS, 293.15, 0.7, ground_factor=1.0, **kw)

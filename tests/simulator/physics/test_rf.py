@@ -27,8 +27,8 @@ def _timeline(range_m: float | None, kind: str = "quadcopter", height_m: float =
     return SimpleNamespace(times_s=t, targets=targets, microphone_position_m=mic)
 
 
-QUIET = dict(wifi_rx_dbm=None, bluetooth_rx_dbm=None, capture_samples=112 * 200)
-IDEAL = dict(propagation="free_space", fading="none", rx_antenna="isotropic")
+QUIET = {"wifi_rx_dbm": None, "bluetooth_rx_dbm": None, "capture_samples": 112 * 200}
+IDEAL = {"propagation": "free_space", "fading": "none", "rx_antenna": "isotropic"}
 VIDEO_2440 = rf_links.OfdmPreset(name="v", role="video", tx_power_dbm=23.0, tx_antenna="isotropic", bandwidth_hz=9e6,
                                  subcarrier_spacing_hz=15e3, channel_centres_hz=(2440e6,), duty=1.0,
                                  burst_range_s=(2e-3, 3e-3))
