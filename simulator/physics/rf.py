@@ -36,6 +36,7 @@ NOISE_TEMPERATURE_K = 290.0
 OFDM_FFT = 256                     # legacy grid of ofdm_bursts: 78.125 kHz subcarrier spacing at 20 MS/s
 OFDM_CP = 64
 SPECTROGRAM_PX = 112
+OFDM_TAPER = 48                    # samples of the sin^2 edge window of each OFDM symbol (2.4 us at 20 MS/s)
 RAMP_S = 10e-6                     # burst power ramp-up/down time of the hopping transmitters
 DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
 _EMITTER_WIFI, _EMITTER_BT, _EMITTER_NOISE = 2, 3, 4
@@ -172,6 +173,7 @@ def ofdm_bursts(rng: np.random.Generator, capture_start_s: np.ndarray, n_samples
         body = sfft.ifft(grid, axis=-1, norm="ortho")
         out[:, :, OFDM_CP:] = body
         out[:, :, :OFDM_CP] = body[:, :, -OFDM_CP:]
+        out *= _symbol_taper(sym_len, OFDM_TAPER)
         out *= on[:, :, None]
     gate = np.repeat(on, sym_len, axis=1)[:, :n_samples]
     return out.reshape(n_seg, -1)[:, :n_samples], gate
@@ -311,7 +313,21 @@ def ofdm_waveform(rng: np.random.Generator, n_rows: int, n_samples: int, sample_
         body = sfft.ifft(grid, axis=-1, norm="ortho")
         out[:, :, cp:] = body
         out[:, :, :cp] = body[:, :, fft - cp:]
+        # transmit windowing: sin^2 edges over part of the CP keep the symbol joins from splattering
+        # out of band (as real OFDM transmitters shape to meet their spectral mask)
+        taper = _symbol_taper(sym_len, min(OFDM_TAPER, cp))
+        out *= taper
     return out.reshape(n_rows, -1)[:, :n_samples], bins.size / n_nominal
+
+
+def _symbol_taper(length: int, edge: int) -> np.ndarray:
+    """Unit-mean-power window with sin^2 ramps of ``edge`` samples at both ends of an OFDM symbol."""
+    w = np.ones(length)
+    if edge > 0:
+        ramp = np.sin(0.5 * np.pi * (np.arange(edge) + 0.5) / edge) ** 2
+        w[:edge] = ramp
+        w[length - edge:] = ramp[::-1]
+    return (w / np.sqrt(np.mean(w ** 2))).astype(np.float32)
 
 
 def _ramp(t_in_burst_s: np.ndarray, duration_s: float) -> np.ndarray:
@@ -475,7 +491,7 @@ def _ofdm_link(cfg: RFConfig, preset: rf_links.OfdmPreset, geo: _Geometry, start
     gain = _path_gain(cfg, geo, np.arange(n_seg), np.full(n_seg, centre), preset.tx_antenna)
     on = np.zeros((n_seg, n), dtype=bool)
     bursts = np.zeros(n_seg, dtype=np.int64)
-    spans: list[tuple[int, int, int]] = []
+    spans: list[tuple[int, int, int, float, float]] = []
     if band_frac > 0:
         for s, idx in enumerate(rf_links.bursts_in_windows(sched, starts, cfg.capture_s)):
             for b in idx:
@@ -484,19 +500,23 @@ def _ofdm_link(cfg: RFConfig, preset: rf_links.OfdmPreset, geo: _Geometry, start
                 if e > a:
                     on[s, a:e] = True
                     bursts[s] += 1
-                    spans.append((s, a, e))
+                    spans.append((s, a, e, float(sched.start_s[b]), float(sched.duration_s[b])))
     sig = np.zeros((n_seg, n), dtype=np.complex64)
     rows = np.nonzero(bursts)[0]
     if rows.size:
         wave, _ = ofdm_waveform(g_wave, rows.size, n, fs, centre - cfg.center_frequency_hz, preset.bandwidth_hz,
                                 preset.subcarrier_spacing_hz, preset.cp_fraction, 0.5 * cfg.passband_fraction * fs)
         amp = (np.sqrt(p_tx_mw * gain[rows]) * fades[rows]).astype(np.complex64)
-        sig[rows] = wave * on[rows] * amp[:, None]
+        envelope = np.zeros((n_seg, n), dtype=np.float32)
+        for s, a, e, t0, dur in spans:
+            t_in = (np.arange(a, e) / fs + starts[s]) - t0
+            envelope[s, a:e] = np.maximum(envelope[s, a:e], _ramp(t_in, dur))
+        sig[rows] = wave * envelope[rows] * amp[:, None]
     snr_all = 10 * np.log10(np.maximum(p_tx_mw * gain * np.abs(fades) ** 2, 1e-300)
                             / (noise_mw * preset.bandwidth_hz / fs))
     snr = np.where(bursts > 0, snr_all, -np.inf)
     notes = [_annotation(cfg, label, preset.role, s * n + a, e - a, centre, preset.bandwidth_hz, snr_all[s])
-             for s, a, e in spans]
+             for s, a, e, _, _ in spans]
     return _LinkResult(sig, on, bursts, snr, 10 * np.log10(p_tx_mw * gain), notes)
 
 
