@@ -36,7 +36,8 @@ NOISE_TEMPERATURE_K = 290.0
 OFDM_FFT = 256                     # legacy grid of ofdm_bursts: 78.125 kHz subcarrier spacing at 20 MS/s
 OFDM_CP = 64
 SPECTROGRAM_PX = 112
-OFDM_TAPER = 48                    # samples of the sin^2 edge window of each OFDM symbol (2.4 us at 20 MS/s)
+OFDM_TAPER = 32                    # sin^2 edge window of each OFDM symbol (1.6 us at 20 MS/s); 2 x 32 <= CP keeps
+                                   # an FFT window starting 32 samples into the CP untouched
 RAMP_S = 10e-6                     # burst power ramp-up/down time of the hopping transmitters
 DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
 _EMITTER_WIFI, _EMITTER_BT, _EMITTER_NOISE = 2, 3, 4
@@ -212,11 +213,13 @@ class RFCapture:
         ``global``: sample rate, datatype; ``captures``: one per capture with its sample start,
         centre frequency and start time on the clip clock (``evids:start_s``); ``annotations``:
         one per received drone burst (sample start/count, absolute frequency edges, link, SNR).
-        The formats layer adds file names, versions and datetimes.
+        Keys in the ``evids:`` namespace are declared as an optional extension. The formats layer
+        adds ``core:version``, file names and datetimes.
         """
         cfg, n = self.config, self.iq.shape[-1] if self.iq.ndim else 0
         return {
             "global": {"core:datatype": "cf32_le", "core:sample_rate": cfg.sample_rate_hz,
+                       "core:extensions": [{"name": "evids", "version": "1.0.0", "optional": True}],
                        "core:description": "evids synthetic drone RF captures (duty-cycled receiver)",
                        "evids:noise_dbm": round(cfg.noise_dbm, 3), "evids:links": [p.name for p in cfg.link_presets]},
             "captures": [{"core:sample_start": int(s * n), "core:frequency": cfg.center_frequency_hz,
@@ -315,7 +318,7 @@ def ofdm_waveform(rng: np.random.Generator, n_rows: int, n_samples: int, sample_
         out[:, :, :cp] = body[:, :, fft - cp:]
         # transmit windowing: sin^2 edges over part of the CP keep the symbol joins from splattering
         # out of band (as real OFDM transmitters shape to meet their spectral mask)
-        taper = _symbol_taper(sym_len, min(OFDM_TAPER, cp))
+        taper = _symbol_taper(sym_len, min(OFDM_TAPER, cp // 2))
         out *= taper
     return out.reshape(n_rows, -1)[:, :n_samples], bins.size / n_nominal
 

@@ -169,7 +169,7 @@ def test_lte_like_ofdm_has_15_khz_subcarriers_and_clipped_band():
     fs = 20e6
     sig, frac = rf.ofdm_waveform(rng_for(0, "rf", 98), 1, 1427 * 40, fs, 0.0, 9e6, 15e3, 144 / 2048, 9e6)
     assert frac == 1.0 and np.mean(np.abs(sig) ** 2) == pytest.approx(1.0, rel=0.02)
-    body = sig[0, 94:94 + 1333]                                  # one symbol after its cyclic prefix
+    body = sig[0, 32:32 + 1333]                      # one symbol: FFT window 32 samples into the CP (past the taper)
     spec = np.abs(np.fft.fft(body)) ** 2
     used = np.nonzero(spec > 1e-3 * spec.max())[0]
     assert used.size == 600                                      # 600 x 15.004 kHz = 9 MHz, DC null
@@ -201,6 +201,20 @@ def test_sigmf_metadata_describes_captures_and_bursts():
     for a in meta["annotations"]:
         assert 0 <= a["core:sample_start"] < a["core:sample_start"] + a["core:sample_count"] <= total
         assert 2431e6 <= a["core:freq_lower_edge"] < a["core:freq_upper_edge"] <= 2449e6
+
+
+def test_sigmf_metadata_validates_against_the_sigmf_schema():
+    sigmf = pytest.importorskip("sigmf")
+    from sigmf import validate
+
+    cap = rf.synthesize_rf(_timeline(150.0), 1, STARTS, config=rf.RFConfig(**QUIET), clip_duration_s=1.0)
+    meta = cap.sigmf_metadata()
+    meta["global"]["core:version"] = sigmf.__version__
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                      # undeclared extensions warn in sigmf 1.x
+        validate.validate(meta)
 
 
 def test_same_seed_same_bytes_different_seed_differs():
