@@ -152,6 +152,22 @@ def test_observability_follows_bursts_in_capture():
     assert not far.observable.any()                              # 2000 km: all below the noise
 
 
+def test_bluetooth_background_hops_on_its_channels_only():
+    cfg = rf.RFConfig(wifi_rx_dbm=None, bluetooth_rx_dbm=-60.0)
+    cap = rf.synthesize_rf(_timeline(None, duration_s=10.2), 3, np.arange(40) * 0.25, config=cfg, clip_duration_s=10.0)
+    strong = cap.spectrogram_dbm > cfg.noise_per_bin_dbm + 20.0
+    row_hz = cfg.center_frequency_hz + (np.arange(rf.SPECTROGRAM_PX)[::-1] - rf.SPECTROGRAM_PX / 2 + 0.5) * cfg.bin_hz
+    rows = np.nonzero(strong.any(axis=(0, 2)))[0]
+    assert rows.size > 0
+    channels = 2402e6 + 1e6 * np.arange(79)
+    # GFSK at 1 Msym/s occupies about +-0.75 MHz around its channel centre
+    assert np.all(np.min(np.abs(row_hz[rows, None] - channels[None, :]), axis=1) < 0.75e6 + cfg.bin_hz)
+    # 366 us packets in 30 % of 625 us slots, 18 of 79 channels in the window: bursty, mostly empty captures
+    busy = strong.any(axis=(1, 2)).mean()
+    assert 0.1 < busy < 0.6
+    assert not cap.link_active.any() and not cap.annotations              # an interferer, not a drone link
+
+
 def test_ofdm_occupied_bandwidth_within_ten_percent():
     fs = 20e6
     sig, gate = rf.ofdm_bursts(rng_for(0, "rf", 99), np.zeros(2), 64_000, fs, 1e6, 10e6, 1.0, (1e-3, 2e-3))
