@@ -94,22 +94,6 @@ def rotor_hover_rpm(kind: str, size_m: float) -> float:
     return 0.0
 
 
-# fixed-pitch props: thrust coefficient ~ C_T0 (1 - J / J0) with J = V / (n D); J0 ~ pitch / diameter
-PROP_ZERO_THRUST_ADVANCE_RATIO = 0.6
-PROP_DIAMETER_PER_SPAN = {"quadcopter": 0.40, "hexacopter": 0.30}   # as scenes.assets draws the props
-
-
-def axial_inflow_rpm(static_rpm: np.ndarray, axial_speed_mps: np.ndarray, prop_diameter_m: float) -> np.ndarray:
-    """RPM that gives the same thrust as ``static_rpm`` when the air flows through the prop at V (climb > 0).
-
-    C_T = C_T0 (1 - J / J0), J = V / (n D): n^2 - (V / (D J0)) n - n0^2 = 0, so
-    n = V / (2 D J0) + sqrt((V / (2 D J0))^2 + n0^2): climbs spin faster, descents slower.
-    """
-    n0 = np.asarray(static_rpm, dtype=np.float64) / 60.0
-    half = np.asarray(axial_speed_mps, dtype=np.float64) / (2.0 * prop_diameter_m * PROP_ZERO_THRUST_ADVANCE_RATIO)
-    return 60.0 * (half + np.sqrt(half ** 2 + n0 ** 2))
-
-
 def _rotor_count(kind: str) -> int:
     return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1}.get(kind, 0)
 
@@ -257,9 +241,6 @@ def build_timeline(scenario: Scenario, seed: int, n_frames: int | None = None) -
             base_rpm = hover * np.sqrt(np.clip(np.linalg.norm(vel, axis=-1) / 15.0, 0.3, 3.0))
         else:
             base_rpm = hover * np.sqrt(np.clip(thrust_ratio, 0.2, 4.0))
-            if target.kind in PROP_DIAMETER_PER_SPAN:
-                climb = np.sum(vel * rotation[:, :, 2], axis=-1)      # inflow speed along the thrust axis
-                base_rpm = axial_inflow_rpm(base_rpm, climb, PROP_DIAMETER_PER_SPAN[target.kind] * target.size_m)
         detune = 1.0 + 0.01 * rng_for(seed, "rotor_detune", index).standard_normal(n_rotors)
         rpm = base_rpm[:, None] * detune[None, :]
         angle = np.concatenate([[0.0], np.cumsum(base_rpm[:-1] / 60.0 * 2 * np.pi / scenario.frame_rate_hz)])
