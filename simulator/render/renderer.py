@@ -19,6 +19,7 @@ Mitsuba is imported lazily (simulator.render.mitsuba_setup) so nothing else depe
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -88,6 +89,13 @@ class FrameBuffers:
     coverage: dict[str, list[TargetCoverage]] | None = None  # per camera, one entry per visible target
 
 
+@lru_cache(maxsize=2)
+def _env_directions_cached(width: int, height: int, to_world_bytes: bytes) -> np.ndarray:
+    out = _env_directions(width, height, np.frombuffer(to_world_bytes).reshape(3, 3))
+    out.flags.writeable = False
+    return out
+
+
 def _env_directions(width: int, height: int, to_world: np.ndarray) -> np.ndarray:
     """World direction of each texel of a Mitsuba lat-long map (local +y up, phi = atan2(x, -z))."""
     u = (np.arange(width) + 0.5) / width
@@ -106,8 +114,8 @@ class SkyMaps:
 
         scenario = timeline.scenario
         self.to_world = mi.ScalarTransform4f().rotate([1, 0, 0], 90)
-        rot = np.array(self.to_world.matrix)[:3, :3]
-        dirs = _env_directions(ENV_WIDTH, ENV_HEIGHT, rot)
+        rot = np.ascontiguousarray(np.array(self.to_world.matrix, dtype=np.float64)[:3, :3])
+        dirs = _env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())  # same for every sequence
         flat = dirs.reshape(-1, 3)
         sun_el, sun_az = sun_elevation_azimuth_deg(scenario.sky.sun)
         self.sun_direction = direction_from_elevation_azimuth(sun_el, sun_az)
@@ -117,34 +125,50 @@ class SkyMaps:
         si = dr.zeros(mi.SurfaceInteraction3f, flat.shape[0])
         si.wi = mi.Vector3f(-flat[:, 0], -flat[:, 1], -flat[:, 2])
         rgb = np.array(sky_only.eval(si)).T.reshape(ENV_HEIGHT, ENV_WIDTH, 3)
-        if sun_el > 0:
-            sun_only = mi.load_dict({**sunsky, "sky_scale": 0.0})
-            si1 = dr.zeros(mi.SurfaceInteraction3f, 1)
-            si1.wi = mi.Vector3f(*[float(c) for c in -self.sun_direction])
-            self.sun_irradiance = np.array(sun_only.eval(si1)).ravel() * SUN_SOLID_ANGLE_SR
-        else:
-            self.sun_irradiance = np.zeros(3)
+        # both helper emitters are always created (and freed) in the same order, so the scene's
+        # own emitters get the same Dr.Jit registry ids in every sequence and the compiled
+        # kernels are reused instead of rebuilt per sequence
+        sun_only = mi.load_dict({**sunsky, "sky_scale": 0.0})
+        si1 = dr.zeros(mi.SurfaceInteraction3f, 1)
+        si1.wi = mi.Vector3f(*[float(c) for c in -self.sun_direction])
+        sun_value = np.array(sun_only.eval(si1)).ravel() * SUN_SOLID_ANGLE_SR
+        self.sun_irradiance = sun_value if sun_el > 0 else np.zeros(3)
+        del sky_only, sun_only, si, si1
         up = dirs[..., 2]
-        texel_solid_angle = (2 * np.pi / ENV_WIDTH) * (np.pi / ENV_HEIGHT) * np.sqrt(np.clip(1 - (dirs[..., 1] * 0) ** 2, 0, 1))
-        texel_solid_angle = texel_solid_angle * np.sin((np.arange(ENV_HEIGHT)[:, None] + 0.5) / ENV_HEIGHT * np.pi)
-        cos_up = np.clip(up, 0, None)
-        sky_irradiance = np.sum(rgb * (cos_up * texel_solid_angle)[..., None], axis=(0, 1))
+        # texel solid angle depends on the row only: (2 pi / W)(pi / H) sin(theta_row)
+        row_sa = (2 * np.pi / ENV_WIDTH) * (np.pi / ENV_HEIGHT) * np.sin((np.arange(ENV_HEIGHT) + 0.5) / ENV_HEIGHT * np.pi)
+        weight = (np.clip(up, 0, None) * row_sa[:, None]).ravel()
+        rgb = rgb.astype(np.float64)
+        sky_irradiance = weight @ rgb.reshape(-1, 3)
         sun_cos = max(self.sun_direction[2], 0.0)
         ground = scenario.sky.ground_albedo * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi
         clouds = scenario.sky.clouds
         if clouds is not None and clouds.coverage > 0:
-            cover = CloudField(clouds, timeline.seed).coverage(dirs)[..., None]
+            above = up > 0  # the field is 0 below the horizon: evaluate the upper half only
+            cover = np.zeros(up.shape + (1,))
+            cover[above, 0] = CloudField(clouds, timeline.seed).coverage(dirs[above])
             cloud_rgb = 0.75 * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi
-            rgb = (1 - cover) * rgb + cover * cloud_rgb
+            rgb += cover * (cloud_rgb - rgb)  # (1 - cover) rgb + cover cloud_rgb
             self.sun_irradiance = self.sun_irradiance * (1 - 0.8 * clouds.coverage)
-        below = (up <= 0)[..., None]
-        rgb = np.where(below, ground, rgb)
+        rgb[up <= 0] = ground
         self.rgb = rgb.astype(np.float32)
         horizon = (up > 0.01) & (up < 0.06)
         self.airlight_rgb = rgb[horizon].mean(axis=0) if np.any(horizon) else rgb.reshape(-1, 3).mean(axis=0)
-        self.thermal_sky = ThermalSky(scenario.sky, scenario.atmosphere, timeline.seed)
-        self.thermal = self.thermal_sky.radiance(dirs).astype(np.float32)
-        self.reflected_lwir = self.thermal_sky.reflected_radiance()
+        self._scenario, self._seed = scenario, timeline.seed
+
+    @cached_property
+    def thermal_sky(self) -> ThermalSky:
+        return ThermalSky(self._scenario.sky, self._scenario.atmosphere, self._seed)
+
+    @cached_property
+    def thermal(self) -> np.ndarray:
+        """LWIR band radiance map (computed only when a thermal camera renders)."""
+        rot = np.ascontiguousarray(np.array(self.to_world.matrix, dtype=np.float64)[:3, :3])
+        return self.thermal_sky.radiance(_env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())).astype(np.float32)
+
+    @cached_property
+    def reflected_lwir(self) -> float:
+        return self.thermal_sky.reflected_radiance()
 
     def rgb_at(self, direction: np.ndarray) -> np.ndarray:
         """Sky colour in a world direction (nearest texel), used for exposure."""
@@ -275,8 +299,13 @@ class _View:
         for slot, frame in enumerate(slot_frames):
             fwd, up = cam.forward[frame], cam.up[frame]
             rows.append(np.concatenate([plan.slot_offset_m(slot), fwd, np.cross(fwd, up), up]))
-        table = np.asarray(rows, np.float64)
+        table = np.asarray(rows + rows[:1], np.float64)  # >= 2 rows: size-1 arrays become kernel literals
         return [mi.Float(table[:, c].astype(np.float32)) for c in range(12)]
+
+    def _opaque(self, kind, value):
+        """A kernel input that is not baked into the kernel source: values that change between
+        sequences (sizes, seeds, focal length) would otherwise recompile the kernels every time."""
+        return self.dr.opaque(kind, value)
 
     def _rays(self, slot, px, py, cams):
         """World rays of slot ``slot`` (UInt32 per lane) through image positions (px, py)."""
@@ -284,32 +313,37 @@ class _View:
         g = [dr.gather(mi.Float, c, slot) for c in cams]
         o = mi.Point3f(g[0], g[1], g[2])
         fwd, right, up = mi.Vector3f(g[3], g[4], g[5]), mi.Vector3f(g[6], g[7], g[8]), mi.Vector3f(g[9], g[10], g[11])
-        d = fwd * cam.focal_px + right * (px - cam.width_px / 2) - up * (py - cam.height_px / 2)
+        f = self._opaque(mi.Float, cam.focal_px)
+        cx, cy = self._opaque(mi.Float, cam.width_px / 2), self._opaque(mi.Float, cam.height_px / 2)
+        d = fwd * f + right * (px - cx) - up * (py - cy)
         ray = mi.Ray3f(o, dr.normalize(d))
-        ray.maxt = self.plan.far_clip_m
+        ray.maxt = self._opaque(mi.Float, self.plan.far_clip_m)
         return ray
 
     def _jitter(self, x, y, s):
         """Sub-pixel sample position in [0, 1)^2: a hash of (camera seed, pixel, sample) only."""
         mi = self.mi
-        pid = y * self.camera.width_px + x
-        key = mi.UInt32(self.jitter_seed) + s * 2
+        pid = y * self._opaque(mi.UInt32, self.camera.width_px) + x
+        key = self._opaque(mi.UInt32, self.jitter_seed) + s * 2
         return mi.sample_tea_float32(pid, key), mi.sample_tea_float32(pid, key + 1)
 
     def _tile_lanes(self, tiles: dict, n_tiles: int):
         """Lane -> (tile, image x, image y, sample) for every sample of every tile."""
         dr, mi, plan = self.dr, self.mi, self.plan
-        tw, th, spp = plan.tile_width, plan.tile_height, self.spp
-        idx = dr.arange(mi.UInt32, n_tiles * th * tw * spp)
+        n = n_tiles * plan.tile_height * plan.tile_width * self.spp
+        tw, th = self._opaque(mi.UInt32, plan.tile_width), self._opaque(mi.UInt32, plan.tile_height)
+        spp = self._opaque(mi.UInt32, self.spp)
+        idx = dr.arange(mi.UInt32, n)
         s = idx % spp
         pix = idx // spp
         u, v, t = pix % tw, (pix // tw) % th, pix // (tw * th)
         order = sorted(tiles)
+        order = order + order[:1]  # >= 2 entries (size-1 arrays become literals)
         x0 = mi.UInt32(np.array([tiles[k].x0 for k in order], np.uint32))
         y0 = mi.UInt32(np.array([tiles[k].y0 for k in order], np.uint32))
         x = dr.gather(mi.UInt32, x0, t) + u
         y = dr.gather(mi.UInt32, y0, t) + v
-        slot = t // plan.tiles_per_frame
+        slot = t // self._opaque(mi.UInt32, plan.tiles_per_frame)
         return slot, x, y, s
 
     def render_tiles(self, seed: int, tiles: dict) -> np.ndarray:
@@ -343,7 +377,9 @@ class _View:
         x0, y0, x1, y1 = region if region is not None else (0, 0, cam.width_px, cam.height_px)
         h, w = y1 - y0, x1 - x0
         idx = dr.arange(mi.UInt32, h * w)
-        x, y = mi.Float(idx % w + x0) + 0.5, mi.Float(idx // w + y0) + 0.5
+        wo = self._opaque(mi.UInt32, w)
+        x = mi.Float(idx % wo + self._opaque(mi.UInt32, x0)) + 0.5
+        y = mi.Float(idx // wo + self._opaque(mi.UInt32, y0)) + 0.5
         # camera vectors go in as arrays (Python floats would become kernel literals and recompile
         # the kernel for every camera pose)
         ray = self._rays(dr.zeros(mi.UInt32, h * w), x, y, self._camera_arrays([frame]))
