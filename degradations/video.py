@@ -32,6 +32,17 @@ def line_kernel(length_px: int, angle_deg: float) -> np.ndarray:
     return ker / ker.sum()
 
 
+def trim_kernel(ker: np.ndarray) -> np.ndarray:
+    """Drop all-zero outer rows/columns symmetrically (the centre, i.e. the anchor, stays put):
+    the filter result is unchanged, but OpenCV filters a thin kernel directly instead of by DFT
+    (a 15 x 15 line kernel: about 10-25x faster)."""
+    rows, cols = np.flatnonzero(ker.any(axis=1)), np.flatnonzero(ker.any(axis=0))
+    cy, cx = ker.shape[0] // 2, ker.shape[1] // 2
+    ry = max(cy - rows[0], rows[-1] - cy)
+    rx = max(cx - cols[0], cols[-1] - cx)
+    return ker[cy - ry:cy + ry + 1, cx - rx:cx + rx + 1]
+
+
 def disk_kernel(radius_px: float) -> np.ndarray:
     """Normalised defocus disk kernel (anti-aliased edge)."""
     r = max(float(radius_px), 0.5)
@@ -120,7 +131,7 @@ class MotionBlur(Degradation):
         p["angle_deg"] = float(rng.uniform(0.0, 180.0))
 
     def _apply(self, x, params, meta):
-        ker = line_kernel(params["length_px"], params["angle_deg"])
+        ker = trim_kernel(line_kernel(params["length_px"], params["angle_deg"]))
         return _frames(lambda f: cv2.filter2D(f, -1, ker, borderType=cv2.BORDER_REFLECT), x)
 
 
@@ -237,7 +248,8 @@ class Rain(Degradation):
 class JPEG(Degradation):
     """JPEG re-encoding per frame at ``quality`` (ImageNet-C 25/18/15/10/7) with libjpeg-turbo via
     simplejpeg: it takes RGB directly (correct chroma without a colour conversion), 4:2:0 chroma
-    subsampling as in common JPEG writers, libjpeg-turbo's fast integer DCT."""
+    subsampling as in common JPEG writers, libjpeg-turbo's fast integer DCT and (decoding) plain
+    chroma upsampling: libjpeg's standard speed options, about 1.2x OpenCV's encode + decode."""
     name = "video.jpeg"
     modality = "rgb"
     table = {"quality": (25.0, 18.0, 15.0, 10.0, 7.0)}
@@ -258,7 +270,7 @@ class JPEG(Degradation):
         def enc(f):
             buf = simplejpeg.encode_jpeg(np.ascontiguousarray(f), quality=q, colorspace="RGB",
                                          colorsubsampling="420", fastdct=True)
-            return simplejpeg.decode_jpeg(buf, colorspace="RGB", fastdct=True)
+            return simplejpeg.decode_jpeg(buf, colorspace="RGB", fastdct=True, fastupsample=True)
         y = _frames(enc, u8)
         return y.astype(np.float32) / 255.0 if is_float else y
 

@@ -29,3 +29,20 @@ def test_jpeg_error_grows_as_quality_falls():
     assert errors[0] < errors[1] < errors[2]
     same = degradations.apply("video.jpeg", clip, seed=1, quality=50)
     assert np.array_equal(same, degradations.apply("video.jpeg", clip, seed=1, quality=50))
+
+
+def test_trimmed_motion_blur_kernel_filters_exactly_like_the_full_kernel():
+    import cv2
+
+    from degradations.video import line_kernel, trim_kernel
+
+    rng = np.random.default_rng(3)
+    frame = (rng.random((40, 50, 3)) * 255).astype(np.uint8)
+    for angle in (0.0, 17.0, 45.0, 100.0, 170.0):
+        full = line_kernel(15, angle)
+        small = trim_kernel(full)
+        assert small.shape[0] % 2 == 1 and small.shape[1] % 2 == 1 and small.size <= full.size
+        assert np.isclose(small.sum(), 1.0)
+        a = cv2.filter2D(frame, -1, full, borderType=cv2.BORDER_REFLECT)
+        b = cv2.filter2D(frame, -1, small, borderType=cv2.BORDER_REFLECT)
+        assert np.abs(a.astype(int) - b).max() <= 1
