@@ -2,8 +2,10 @@
 sequence, and small-frame RGB video at 112x112 (the TRIDENT size `evids demo` renders).
 
 Prints the time per stage and the lines `paired frames/s: X` (sustained after a warm-up batch;
-render + encode + labels, as `evids render` needs them) and `video 112px frames/s: X`
-(`simulator.dataset.sequence.render_rgb_video`, RGB only). Reference measured in the same run: the
+render + encode + labels, as `evids render` needs them), `evids render end to end paired
+frames/s: X` (`render_sequence` of the same frames into a temporary folder: setup, PNG writing,
+labels.json, hashes) and `video 112px frames/s: X` (`simulator.dataset.sequence.render_rgb_video`
+of a whole clip, RGB only, setup included). Reference measured in the same run: the
 previous renderer's approach, one Mitsuba launch per frame and pass (`mi.render` of a per-frame
 scene with the same shapes, spp and integrators: RGB, thermal and two id-mask passes), so the
 ratio shows what batching, ROI tiles and analytic coverage buy. The load average is printed
@@ -107,6 +109,18 @@ def main() -> None:
     fps = args.frames / elapsed
     reference_fps = _per_launch_reference(scenario, args.reference_frames)
 
+    import tempfile
+    from pathlib import Path
+
+    from simulator.dataset.sequence import PassTimes, render_sequence
+
+    with tempfile.TemporaryDirectory() as tmp:
+        e2e_times = PassTimes()
+        e0 = time.perf_counter()
+        render_sequence(scenario, 0, Path(tmp), progress=False, times=e2e_times)
+        e2e_s = time.perf_counter() - e0
+    e2e_fps = timeline.n_frames / e2e_s
+
     video_scene = load_scenario(args.scene)
     video_scene = video_scene.model_copy(update={"duration_s": args.video_frames / video_scene.frame_rate_hz})
     render_rgb_video(video_scene, 1, 32, 112, 112)  # compile
@@ -123,8 +137,11 @@ def main() -> None:
     print(f"reference, one launch per frame and pass (4 passes): {reference_fps:.2f} paired frames/s; "
           f"speedup {fps / reference_fps:.1f}x")
     print(f"video 112px: {len(video)} frames incl. sky maps and scene build per clip")
+    print("render_sequence end to end (native layout, PNGs on writer threads, labels, hashes; "
+          f"{timeline.n_frames} frames incl. setup): " + ", ".join(f"{k} {v:.2f} s" for k, v in e2e_times.seconds.items()))
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     print(f"paired frames/s: {fps:.2f}")
+    print(f"evids render end to end paired frames/s: {e2e_fps:.2f}")
     print(f"video 112px frames/s: {video_fps:.1f}")
 
 

@@ -167,7 +167,10 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
             cv2.setNumThreads(int(threads))
         scenario = Scenario.model_validate(task["scenario"])
         cpu0 = time.process_time()
-        written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False)
+        # a worker limited to N threads also writes its PNGs on N threads (no oversubscription)
+        writer = {} if threads is None else {"writer_threads": max(1, int(threads))}
+        written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False,
+                                  **writer)
         return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
                 "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid()}
     except Exception as exc:  # reported per sequence by the driver; other sequences continue

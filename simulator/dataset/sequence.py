@@ -120,7 +120,7 @@ class _FrameWriter:
 
 def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: int | None = None,
                     formats: tuple[str, ...] = ("native",), preview: bool = False, progress: bool = True,
-                    times: PassTimes | None = None) -> dict[str, Path]:
+                    times: PassTimes | None = None, writer_threads: int = WRITER_THREADS) -> dict[str, Path]:
     """Render ``scenario`` with ``seed`` into ``out_dir``; returns the written paths by kind.
 
     native: ``out_dir/<name>/`` (docs/NATIVE_FORMAT.md); antiuav: ``out_dir/antiuav/<name>/`` and
@@ -158,7 +158,7 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                            TimeRemainingColumn(), transient=True)
             task = bar.add_task("frames", total=timeline.n_frames)
             bar.start()
-        writer = _FrameWriter(tmp, kpc)
+        writer = _FrameWriter(tmp, kpc, writer_threads)
         try:
             t0 = time.perf_counter()
             for i, buffers in renderer.iter_frames():

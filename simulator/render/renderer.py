@@ -96,6 +96,15 @@ def _env_directions_cached(width: int, height: int, to_world_bytes: bytes) -> np
     return out
 
 
+@lru_cache(maxsize=2)
+def _neg_directions_f32(width: int, height: int, to_world_bytes: bytes) -> np.ndarray:
+    """(3, n) float32 of minus the upper-hemisphere texel directions (the ``wi`` of a sky lookup)."""
+    top = _env_directions_cached(width, height, to_world_bytes)[: height // 2]
+    out = np.ascontiguousarray(-top.reshape(-1, 3).T.astype(np.float32))
+    out.flags.writeable = False
+    return out
+
+
 def _env_directions(width: int, height: int, to_world: np.ndarray) -> np.ndarray:
     """World direction of each texel of a Mitsuba lat-long map (local +y up, phi = atan2(x, -z))."""
     u = (np.arange(width) + 0.5) / width
@@ -116,15 +125,20 @@ class SkyMaps:
         self.to_world = mi.ScalarTransform4f().rotate([1, 0, 0], 90)
         rot = np.ascontiguousarray(np.array(self.to_world.matrix, dtype=np.float64)[:3, :3])
         dirs = _env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())  # same for every sequence
-        flat = dirs.reshape(-1, 3)
+        # rows [0, H/2) are exactly the texels above the horizon: the sky is evaluated there only,
+        # the lower half is the ground (one colour)
+        half = ENV_HEIGHT // 2
+        top = dirs[:half]
+        up = top[..., 2]
         sun_el, sun_az = sun_elevation_azimuth_deg(scenario.sky.sun)
         self.sun_direction = direction_from_elevation_azimuth(sun_el, sun_az)
         sunsky = {"type": "sunsky", "sun_direction": self.sun_direction.tolist(), "turbidity": scenario.sky.turbidity,
                   "albedo": scenario.sky.ground_albedo}
         sky_only = mi.load_dict({**sunsky, "sun_scale": 0.0})
-        si = dr.zeros(mi.SurfaceInteraction3f, flat.shape[0])
-        si.wi = mi.Vector3f(-flat[:, 0], -flat[:, 1], -flat[:, 2])
-        rgb = np.array(sky_only.eval(si)).T.reshape(ENV_HEIGHT, ENV_WIDTH, 3)
+        wi = _neg_directions_f32(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())
+        si = dr.zeros(mi.SurfaceInteraction3f, wi.shape[1])
+        si.wi = mi.Vector3f(wi[0], wi[1], wi[2])
+        rgb = np.array(sky_only.eval(si), dtype=np.float32).T.reshape(half, ENV_WIDTH, 3)
         # both helper emitters are always created (and freed) in the same order, so the scene's
         # own emitters get the same Dr.Jit registry ids in every sequence and the compiled
         # kernels are reused instead of rebuilt per sequence
@@ -134,26 +148,24 @@ class SkyMaps:
         sun_value = np.array(sun_only.eval(si1)).ravel() * SUN_SOLID_ANGLE_SR
         self.sun_irradiance = sun_value if sun_el > 0 else np.zeros(3)
         del sky_only, sun_only, si, si1
-        up = dirs[..., 2]
         # texel solid angle depends on the row only: (2 pi / W)(pi / H) sin(theta_row)
-        row_sa = (2 * np.pi / ENV_WIDTH) * (np.pi / ENV_HEIGHT) * np.sin((np.arange(ENV_HEIGHT) + 0.5) / ENV_HEIGHT * np.pi)
-        weight = (np.clip(up, 0, None) * row_sa[:, None]).ravel()
-        rgb = rgb.astype(np.float64)
-        sky_irradiance = weight @ rgb.reshape(-1, 3)
+        row_sa = (2 * np.pi / ENV_WIDTH) * (np.pi / ENV_HEIGHT) * np.sin((np.arange(half) + 0.5) / ENV_HEIGHT * np.pi)
+        weight = (up * row_sa[:, None]).ravel()
+        sky_irradiance = weight @ rgb.reshape(-1, 3).astype(np.float64)
         sun_cos = max(self.sun_direction[2], 0.0)
         ground = scenario.sky.ground_albedo * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi
         clouds = scenario.sky.clouds
         if clouds is not None and clouds.coverage > 0:
-            above = up > 0  # the field is 0 below the horizon: evaluate the upper half only
-            cover = np.zeros(up.shape + (1,))
-            cover[above, 0] = CloudField(clouds, timeline.seed).coverage(dirs[above])
-            cloud_rgb = 0.75 * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi
+            cover = CloudField(clouds, timeline.seed).coverage(top).astype(np.float32)[..., None]
+            cloud_rgb = (0.75 * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi).astype(np.float32)
             rgb += cover * (cloud_rgb - rgb)  # (1 - cover) rgb + cover cloud_rgb
             self.sun_irradiance = self.sun_irradiance * (1 - 0.8 * clouds.coverage)
-        rgb[up <= 0] = ground
-        self.rgb = rgb.astype(np.float32)
+        full = np.empty((ENV_HEIGHT, ENV_WIDTH, 3), np.float32)
+        full[:half] = rgb
+        full[half:] = ground
+        self.rgb = full
         horizon = (up > 0.01) & (up < 0.06)
-        self.airlight_rgb = rgb[horizon].mean(axis=0) if np.any(horizon) else rgb.reshape(-1, 3).mean(axis=0)
+        self.airlight_rgb = rgb[horizon].astype(np.float64).mean(axis=0)
         self._scenario, self._seed = scenario, timeline.seed
 
     @cached_property
