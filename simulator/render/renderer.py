@@ -83,10 +83,17 @@ class FrameBuffers:
 
     rgb_linear: np.ndarray | None        # (H, W, 3) linear sRGB radiance x exposure
     thermal_radiance: np.ndarray | None  # (H, W) W sr^-1 m^-2 at the sensor
-    thermal_kelvin: np.ndarray | None    # (H, W) radiometric (brightness) temperature
     mask_rgb: np.ndarray | None          # (H, W) uint16 id of the target covering >= half the pixel, 0 = none
     mask_thermal: np.ndarray | None      # (H, W) uint16
     coverage: dict[str, list[TargetCoverage]] | None = None  # per camera, one entry per visible target
+
+    @cached_property
+    def thermal_kelvin(self) -> np.ndarray | None:
+        """(H, W) float32 radiometric (brightness) temperature; computed on first use (by the
+        writer threads, off the render loop)."""
+        if self.thermal_radiance is None:
+            return None
+        return thermal.brightness_temperature(self.thermal_radiance).astype(np.float32)
 
 
 @lru_cache(maxsize=2)
@@ -598,7 +605,7 @@ class SequenceRenderer:
         return records, mask
 
     def _buffers(self, parts: dict) -> FrameBuffers:
-        rgb = th = kelvin = mask_rgb = mask_th = None
+        rgb = th = mask_rgb = mask_th = None
         coverage = {}
         if "rgb" in parts:
             image, coverage["rgb"], mask_rgb = parts["rgb"]
@@ -606,8 +613,7 @@ class SequenceRenderer:
         if "thermal" in parts:
             image, coverage["thermal"], mask_th = parts["thermal"]
             th = np.ascontiguousarray(image[..., 0])
-            kelvin = thermal.brightness_temperature(th).astype(np.float32)
-        return FrameBuffers(rgb_linear=rgb, thermal_radiance=th, thermal_kelvin=kelvin, mask_rgb=mask_rgb,
+        return FrameBuffers(rgb_linear=rgb, thermal_radiance=th, mask_rgb=mask_rgb,
                             mask_thermal=mask_th, coverage=coverage if self.labels else None)
 
     def iter_frames(self):
