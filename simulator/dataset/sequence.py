@@ -179,6 +179,9 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
             try:
                 writer.finish()
             finally:
+                renderer_meta = {"exposure": renderer.exposure, "variant": renderer.mi.variant(),
+                                 "layout": renderer.record()}
+                renderer.close()
                 if bar is not None:
                     bar.stop()
         times.add("wait for writers", t0)
@@ -191,8 +194,8 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
             "format_version": FORMAT_VERSION, "scenario_name": scenario.name, "seed": int(seed),
             "n_frames": timeline.n_frames, "frame_rate_hz": scenario.frame_rate_hz,
             "cameras": {"rgb": _camera_meta(timeline, "rgb"), "thermal": _camera_meta(timeline, "thermal")},
-            "rgb_exposure": round(renderer.exposure, 9), "mitsuba_variant": renderer.mi.variant(),
-            "render_layout": renderer.record(),
+            "rgb_exposure": round(renderer_meta["exposure"], 9), "mitsuba_variant": renderer_meta["variant"],
+            "render_layout": renderer_meta["layout"],
             "versions": package_versions(),
         })
         write_hashes(tmp)
@@ -226,8 +229,11 @@ def render_rgb_video(scenario: Scenario, seed: int, n_frames: int, width_px: int
     timeline = build_timeline(small, seed, n_frames)
     renderer = SequenceRenderer(timeline, cameras=("rgb",), labels=False)
     out = np.empty((timeline.n_frames, height_px, width_px, 3), np.uint8)
-    for i, buffers in renderer.iter_frames():
-        out[i] = rgb_to_srgb8(buffers.rgb_linear)
+    try:
+        for i, buffers in renderer.iter_frames():
+            out[i] = rgb_to_srgb8(buffers.rgb_linear)
+    finally:
+        renderer.close()
     return out
 
 
