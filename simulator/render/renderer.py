@@ -18,6 +18,7 @@ Mitsuba is imported lazily (simulator.render.mitsuba_setup) so nothing else depe
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
@@ -217,7 +218,9 @@ class _View:
         import drjit as dr
 
         self.dr = dr
-        self.owner, self.which, self.plan = owner, which, plan
+        # a proxy, not a reference: no renderer <-> view cycle, so a dropped renderer frees its
+        # Mitsuba scenes at once instead of at the next garbage collection
+        self.owner, self.which, self.plan = weakref.proxy(owner), which, plan
         self.mi = mi = owner.mi
         self.camera = owner.timeline.cameras[which]
         rig = owner.rig
