@@ -20,7 +20,7 @@ from simulator.sensors.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8
 
 FORMATS = ("native", "antiuav")
 WRITER_THREADS = 2       # PNG encoding runs beside rendering (cv2 and numpy release the GIL)
-MAX_PENDING_FRAMES = 64  # bound on frames queued for writing (memory)
+MAX_PENDING_FRAMES = 32  # bound on frames queued for writing (memory: ~6 MB per 640x512 paired frame)
 
 
 @dataclass
