@@ -250,6 +250,10 @@ class _View:
         self.environment = self.scene.environment()
         self.integrator = mi.load_dict({"type": "path", "max_depth": RGB_MAX_DEPTH}) if which == "rgb" else None
         self._sky_cache: tuple[tuple, np.ndarray] | None = None
+        # a camera that never turns keeps one cached sky (copied per frame before compositing);
+        # a turning camera gets a fresh sky per frame that the composite may overwrite in place
+        self.static = bool(np.all(self.camera.forward == self.camera.forward[0])
+                           and np.all(self.camera.up == self.camera.up[0]))
 
     # ---- scene construction -------------------------------------------------------------------
     def _build(self):
@@ -388,13 +392,14 @@ class _View:
     def sky(self, frame: int, region: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """(H, W, 3) sky radiance at pixel centres (ROI mode's background; the sky behind a target
         for label contrast), cached while the camera does not turn. Pixels smaller than a sky
-        texel make this the pixel's mean to well below the 8-bit step (tested against a full render)."""
+        texel make this the pixel's mean to well below the 8-bit step (tested against a full render).
+        Only a static camera's sky is cached (a turning camera's is composited over in place)."""
         dr, mi, cam = self.dr, self.mi, self.camera
         pose = (cam.forward[frame].tobytes(), cam.up[frame].tobytes())
         if self._sky_cache is not None and self._sky_cache[0] == pose:
             whole = self._sky_cache[1]
             return whole if region is None else whole[region[1]:region[3], region[0]:region[2]]
-        if region is not None and self.plan.mode == "roi":
+        if region is not None and self.plan.mode == "roi" and self.static:
             return self.sky(frame)[region[1]:region[3], region[0]:region[2]]
         x0, y0, x1, y1 = region if region is not None else (0, 0, cam.width_px, cam.height_px)
         h, w = y1 - y0, x1 - x0
@@ -408,9 +413,8 @@ class _View:
         si = dr.zeros(mi.SurfaceInteraction3f, h * w)
         si.wi = -ray.d
         image = np.array(self.environment.eval(si), dtype=np.float32).T.reshape(h, w, 3)
-        if region is not None:
-            return image
-        self._sky_cache = (pose, image)
+        if region is None and self.static:
+            self._sky_cache = (pose, image)
         return image
 
     def coverage(self, slot_frames: list[int], tiles: dict[tuple[int, int], Tile], wanted: set[int]) -> dict:
@@ -562,7 +566,8 @@ class SequenceRenderer:
         if plan.mode == "full":
             image = radiance[slot][: h, : w].copy()
         else:
-            image = view.sky(frame).copy()
+            sky = view.sky(frame)
+            image = sky.copy() if view.static else sky  # a turning camera's sky is not reused
             for ti in range(plan.tiles_per_frame):
                 if self.boxes[view.which][frame][ti] is None:
                     continue

@@ -161,3 +161,15 @@ def test_thermal_contrast_label_is_the_target_radiance_against_the_sky_behind_it
     pix = fb.thermal_kelvin[y0:y1, x0:x1][cov.coverage > 0].mean()
     sky = thermal.brightness_temperature(cov.sky_radiance)
     assert abs(rec["contrast_k"]) > abs(pix - sky)
+
+
+def test_turning_camera_roi_and_full_modes_give_identical_labels():
+    timeline = build_timeline(shrink(load_scenario("clear_day_quad"), 320, 256, spp=1), 0, 18)
+    roi, full = SequenceRenderer(timeline), SequenceRenderer(timeline, roi=False)
+    assert not roi.views["thermal"].static and roi.plans["thermal"].mode == "roi"
+    cam = timeline.cameras["thermal"]
+    for frame in (2, 17):
+        a, b = roi.render_frame(frame), full.render_frame(frame)
+        la = coverage_labels(timeline, frame, "thermal", a.coverage["thermal"], cam.width_px, cam.height_px, 0.05)
+        lb = coverage_labels(timeline, frame, "thermal", b.coverage["thermal"], cam.width_px, cam.height_px, 0.05)
+        assert la == lb and la[0]["exist"] == 1
