@@ -2,7 +2,7 @@
 sequence, and small-frame RGB video at 112x112 (the TRIDENT size `evids demo` renders).
 
 Prints the time per stage and the lines `paired frames/s: X` (sustained after a warm-up batch;
-render + labels + encode, the encoding on two threads beside the render loop as in `evids render`;
+render + labels + the camera model (which encodes), in frame order as in `evids render`;
 the per-stage times are printed too), `evids render end to end paired
 frames/s: X` (`render_sequence` of the same frames into a temporary folder: setup, PNG writing,
 labels.json, hashes) and `video 112px frames/s: X` (`simulator.dataset.sequence.render_rgb_video`
@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import os
 import time
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -29,7 +28,7 @@ from simulator.physics.timeline import build_timeline
 from simulator.render.labels import coverage_labels
 from simulator.render.plan import BATCH_FRAMES
 from simulator.render.renderer import SequenceRenderer
-from simulator.sensors.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8
+from simulator.sensors.camera import CameraModel
 
 
 def _per_launch_reference(scenario, n_frames: int) -> float:
@@ -86,41 +85,31 @@ def main() -> None:
     renderer = SequenceRenderer(timeline)
     setup_s = time.perf_counter() - t0
     netd = scenario.camera_rig.thermal.netd_k
-    kpc = scenario.camera_rig.thermal.kelvin_per_count
     rgb_cam, th_cam = timeline.cameras["rgb"], timeline.cameras["thermal"]
-    stages = {"render (rgb + thermal + coverage)": 0.0, "labels": 0.0}
-    encode_s = [0.0]
-
-    def encode(fb) -> None:
-        e = time.perf_counter()
-        rgb_to_srgb8(fb.rgb_linear)
-        kelvin_to_counts(fb.thermal_kelvin, kpc)
-        agc_8bit(fb.thermal_kelvin)
-        encode_s[0] += time.perf_counter() - e
-
+    stages = {"render (rgb + thermal + coverage)": 0.0, "labels": 0.0,
+              "camera model (PSF, lag, noise, encodings, AGC)": 0.0}
+    # camera model (issue 13): on by default in render_sequence, so it counts in frames/s; it keeps
+    # state (bolometer lag), so it runs in frame order here as it does there
+    camera = CameraModel(timeline, renderer.exposure)
     frames = renderer.iter_frames()
     for _ in range(warm):  # the first batch compiles the kernels
-        next(frames)
-    # encoding runs on two threads beside the render loop, as in `evids render` (sequence.py)
-    pool = ThreadPoolExecutor(max_workers=2)
-    pending = []
+        i, fb = next(frames)
+        camera.record(i, fb.rgb_linear, fb.thermal_radiance, fb.thermal_kelvin)
     start = time.perf_counter()
     a = start
     for i, fb in frames:
         b = time.perf_counter()
         coverage_labels(timeline, i, "rgb", fb.coverage["rgb"], rgb_cam.width_px, rgb_cam.height_px)
         coverage_labels(timeline, i, "thermal", fb.coverage["thermal"], th_cam.width_px, th_cam.height_px, netd)
-        pending.append(pool.submit(encode, fb))
+        c = time.perf_counter()
+        camera.record(i, fb.rgb_linear, fb.thermal_radiance, fb.thermal_kelvin)
         d = time.perf_counter()
         stages["render (rgb + thermal + coverage)"] += b - a
-        stages["labels"] += d - b
+        stages["labels"] += c - b
+        stages["camera model (PSF, lag, noise, encodings, AGC)"] += d - c
         a = time.perf_counter()
-    for future in pending:
-        future.result()
-    pool.shutdown()
     elapsed = time.perf_counter() - start
     fps = args.frames / elapsed
-    stages["encode (sRGB, kelvin, counts, AGC; on 2 threads, overlapped)"] = encode_s[0]
     reference_fps = _per_launch_reference(scenario, args.reference_frames)
 
     import tempfile

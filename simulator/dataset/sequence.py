@@ -16,7 +16,8 @@ from simulator.files import atomic_folder, package_versions, write_hashes
 from simulator.formats.native import FORMAT_VERSION, frame_name, write_json, write_png
 from simulator.physics.timeline import Timeline, build_timeline
 from simulator.render.labels import CLASS_OF_KIND, coverage_labels
-from simulator.sensors.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8
+from simulator.sensors.camera import CameraModel
+from simulator.sensors.encode import rgb_to_srgb8
 
 FORMATS = ("native", "antiuav")
 WRITER_THREADS = 2       # PNG encoding runs beside rendering (cv2 and numpy release the GIL)
@@ -77,34 +78,34 @@ def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
             zf.writestr(info, buf.getvalue())
 
 
-def camera_outputs(buffers, kelvin_per_count: float) -> dict[str, np.ndarray]:
-    """What the cameras record for one rendered frame: the images written to disk, by path under
-    the sequence folder. The single place between the renderer's radiance and the files (a camera
-    model hooks in here); labels never pass through it (they come from the exact geometry)."""
+def camera_outputs(recorded, buffers) -> dict[str, np.ndarray]:
+    """The images written for one frame, by path under the sequence folder: what the camera
+    model recorded (``simulator.sensors.camera``) and the exact masks. Labels never pass through
+    here (they come from the exact geometry, before any sensor effect)."""
     return {
-        "rgb": rgb_to_srgb8(buffers.rgb_linear),
-        "thermal": kelvin_to_counts(buffers.thermal_kelvin, kelvin_per_count),
-        "thermal_agc": agc_8bit(buffers.thermal_kelvin)[0],
+        "rgb": recorded.rgb8,
+        "thermal": recorded.thermal_counts,
+        "thermal_agc": recorded.thermal_agc8,
         "masks/rgb": buffers.mask_rgb,
         "masks/thermal": buffers.mask_thermal,
     }
 
 
-def _write_frame(folder: Path, index: int, buffers, kelvin_per_count: float) -> None:
-    for sub, image in camera_outputs(buffers, kelvin_per_count).items():
+def _write_frame(folder: Path, index: int, recorded, buffers) -> None:
+    for sub, image in camera_outputs(recorded, buffers).items():
         write_png(folder / sub / frame_name(index, "png"), image)
 
 
 class _FrameWriter:
     """Encodes and writes frames on worker threads while the caller renders the next batch."""
 
-    def __init__(self, folder: Path, kelvin_per_count: float, threads: int = WRITER_THREADS):
-        self.folder, self.kpc = folder, kelvin_per_count
+    def __init__(self, folder: Path, threads: int = WRITER_THREADS):
+        self.folder = folder
         self.pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="evids-write")
         self.pending: list[Future] = []
 
-    def submit(self, index: int, buffers) -> None:
-        self.pending.append(self.pool.submit(_write_frame, self.folder, index, buffers, self.kpc))
+    def submit(self, index: int, recorded, buffers) -> None:
+        self.pending.append(self.pool.submit(_write_frame, self.folder, index, recorded, buffers))
         while len(self.pending) > MAX_PENDING_FRAMES:
             self.pending.pop(0).result()
 
@@ -136,8 +137,8 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
     times = times or PassTimes()
     timeline = build_timeline(scenario, seed, n_frames)
     renderer = SequenceRenderer(timeline)
+    camera = CameraModel(timeline, renderer.exposure)  # issue 13: the camera model (sensor: ideal = plain encodings)
     netd = scenario.camera_rig.thermal.netd_k
-    kpc = scenario.camera_rig.thermal.kelvin_per_count
     rgb_cam, th_cam = timeline.cameras["rgb"], timeline.cameras["thermal"]
     written: dict[str, Path] = {}
     final = out_dir / scenario.name
@@ -158,11 +159,14 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                            TimeRemainingColumn(), transient=True)
             task = bar.add_task("frames", total=timeline.n_frames)
             bar.start()
-        writer = _FrameWriter(tmp, kpc, writer_threads)
+        writer = _FrameWriter(tmp, writer_threads)
         try:
             t0 = time.perf_counter()
             for i, buffers in renderer.iter_frames():
                 t0 = times.add("render (rgb + thermal + coverage)", t0)
+                # the camera model keeps state (bolometer lag): it runs here, in frame order
+                recorded = camera.record(i, buffers.rgb_linear, buffers.thermal_radiance, buffers.thermal_kelvin)
+                t0 = times.add("camera model", t0)
                 frames.append({
                     "index": i, "time_s": round(float(timeline.times_s[i]), 6),
                     "rgb": coverage_labels(timeline, i, "rgb", buffers.coverage["rgb"], rgb_cam.width_px, rgb_cam.height_px),
@@ -170,7 +174,7 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                                                th_cam.height_px, netd),
                 })
                 t0 = times.add("labels", t0)
-                writer.submit(i, buffers)
+                writer.submit(i, recorded, buffers)
                 t0 = times.add("queue for writing", t0)
                 if bar is not None:
                     bar.advance(task)
@@ -194,6 +198,7 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
             "format_version": FORMAT_VERSION, "scenario_name": scenario.name, "seed": int(seed),
             "n_frames": timeline.n_frames, "frame_rate_hz": scenario.frame_rate_hz,
             "cameras": {"rgb": _camera_meta(timeline, "rgb"), "thermal": _camera_meta(timeline, "thermal")},
+            "sensor": camera.metadata(),
             "rgb_exposure": round(renderer_meta["exposure"], 9), "mitsuba_variant": renderer_meta["variant"],
             "render_layout": renderer_meta["layout"],
             "versions": package_versions(),

@@ -5,7 +5,7 @@ One scene graph per camera, sharing geometry built from the same procedural mesh
   a directional sun, path traced. Visible haze is exact per object: reflectance is scaled by the
   transmittance t and the airlight (1 - t) A is added as emission, so L = t L_obj + (1 - t) A.
 - Thermal: every part is an emitter of its at-sensor band radiance
-  tau (eps L(T) + (1 - eps) L_refl) + (1 - tau) L(T_air) over an LWIR sky map (simulator.physics.sky);
+  tau (eps L(T) + (1 - eps) L_refl) + L_path (LOWTRAN7 tables) over an LWIR sky map (simulator.physics.sky);
   one bounce suffices because the physics is folded into the emission (no Mitsuba thermal physics).
 - Batched: many frames per launch (Mitsuba's ``batch`` sensor, one sub-sensor per tile; each frame's
   world is its own copy, see simulator.render.plan). Small frames are whole tiles; on large frames
@@ -420,7 +420,7 @@ class _View:
     def coverage(self, slot_frames: list[int], tiles: dict[tuple[int, int], Tile], wanted: set[int]) -> dict:
         """Coverage rays (regular k x k grid per pixel) over each target's projected box in each
         wanted slot: {(slot, target): (region, (h, w, n_keys) hit counts)}."""
-        dr, mi, cam = self.dr, self.mi, self.camera
+        mi, cam = self.mi, self.camera
         k = COVERAGE_SUBSAMPLES
         sub = (np.arange(k) + 0.5) / k
         xs_all, ys_all, slots_all, regions = [], [], [], []
@@ -477,7 +477,6 @@ class SequenceRenderer:
         self.sky = SkyMaps(mi, timeline)
         atm = scenario.atmosphere
         self.beta_visible = thermal.visible_extinction_per_m(atm.visibility_m)
-        self.beta_lwir = thermal.lwir_extinction_per_m(atm.visibility_m, atm.relative_humidity)
         self.air_radiance = float(thermal.band_radiance(atm.air_temperature_k))
         self.rig = scenario.camera_rig
         self._targets = {t.name: t for t in scenario.targets}
@@ -522,13 +521,14 @@ class SequenceRenderer:
         return t * np.asarray(material.rgb_reflectance), (1 - t) * self.sky.airlight_rgb
 
     def thermal_radiance(self, ti: int, role: str, frame: int, which: str) -> float:
-        """At-sensor LWIR band radiance of a part: tau (eps L(T) + (1 - eps) L_refl) + (1 - tau) L_air."""
+        """At-sensor LWIR band radiance of a part: tau (eps L(T) + (1 - eps) L_refl) + L_path."""
         track = self.timeline.targets[ti]
         material = material_for(self._targets[track.name], role)
         temp_k = float(track.part_temperature_k[role][frame])
         surface = thermal.surface_radiance(temp_k, material.emissivity, self.sky.reflected_lwir)
-        tau = float(thermal.transmission(self._range_m(ti, frame, which), self.beta_lwir))
-        return float(tau * surface + (1 - tau) * self.air_radiance)
+        sight = track.position_m[frame] - self.timeline.cameras[which].origin_m[frame]
+        tau, path_radiance = self.sky.thermal_sky.lwir.along(sight)  # LOWTRAN7 tables (physics.atmosphere)
+        return float(tau * surface + path_radiance)
 
     def record(self) -> dict:
         """The launch layout per camera (recorded in the metadata: it shapes the sample pattern)."""
