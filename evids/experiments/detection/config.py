@@ -13,7 +13,7 @@ import copy
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from scenes.errors import UserInputError
 
@@ -121,11 +121,16 @@ class DetectionConfig(_Model):
     crop_context: float = Field(default=1.5, ge=1.0, le=4.0)
     crop_px: int = Field(default=64, ge=16, le=512)
 
+    @field_validator("conditions")
+    @classmethod
+    def _known_conditions(cls, v: list[str]) -> list[str]:
+        bad = [c for c in v if c not in CONDITIONS]
+        if bad:
+            raise ValueError(f"unknown condition(s) {bad}; valid: {', '.join(CONDITIONS)}")
+        return v
+
     @model_validator(mode="after")
     def _known(self) -> "DetectionConfig":
-        bad = [c for c in self.conditions if c not in CONDITIONS]
-        if bad:
-            raise ValueError(f"conditions: unknown condition(s) {bad}; valid: {', '.join(CONDITIONS)}")
         if "f_ds_gated" in self.conditions and "e_ds" not in self.conditions:
             raise ValueError("conditions: f_ds_gated needs e_ds (the gate reuses its fitted tracking thresholds)")
         if "h_feature_fusion_ts" in self.conditions and "g_feature_fusion" not in self.conditions:

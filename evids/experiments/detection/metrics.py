@@ -50,6 +50,7 @@ def coco_ap50(gt_path: Path, results_path: Path, detections: list[tuple[str, int
         for b, s in zip(np.asarray(boxes).reshape(-1, 4), np.asarray(scores).reshape(-1)):
             results.append({"image_id": iid, "category_id": 1, "bbox": [round(float(v), 3) for v in b],
                             "score": round(float(s), 6)})
+    Path(results_path).parent.mkdir(parents=True, exist_ok=True)
     Path(results_path).write_text(json.dumps(results))
     if not results:
         return 0.0
@@ -125,7 +126,8 @@ def trackeval_mot(gt_root: Path, trackers_root: Path, benchmark: str, split: str
                  "OUTPUT_SUMMARY": False, "OUTPUT_DETAILED": False, "PLOT_CURVES": False, "DISPLAY_LESS_PROGRESS": True,
                  "OUTPUT_EMPTY_CLASSES": False, "LOG_ON_ERROR": None, "BREAK_ON_ERROR": True, "PRINT_ONLY_COMBINED": True})
     dataset = _mmuav_dataset_class()(dcfg)
-    metrics = [trackeval.metrics.HOTA(), trackeval.metrics.CLEAR(), trackeval.metrics.Identity()]
+    quiet = {"PRINT_CONFIG": False}
+    metrics = [trackeval.metrics.HOTA(quiet), trackeval.metrics.CLEAR(quiet), trackeval.metrics.Identity(quiet)]
     with contextlib.redirect_stdout(io.StringIO()):
         res, _ = trackeval.Evaluator(ecfg).evaluate([dataset], metrics)
     out = {}

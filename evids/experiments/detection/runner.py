@@ -99,14 +99,20 @@ def _resolve(src, field: str, folder: Path, need: tuple[str, ...], log: Log) -> 
     return out
 
 
-def resolve_data(cfg: DetectionConfig, run_dir: Path, log: Log) -> dict[str, Any]:
+def resolve_data(cfg: DetectionConfig, run_dir: Path, log: Log, tests: bool) -> dict[str, Any]:
+    """Generate (cached) or locate the training dataset, and with ``tests`` the test datasets."""
     folder = _data_root(cfg, run_dir)
     train = _resolve(cfg.data.train, "data.train", folder, ("train", "val"), log)
-    tests = {name: _resolve(src, f"data.test.{name}", folder, ("test",), log) for name, src in cfg.data.test.items()}
-    ids = {}
-    for k, p in {"train": train, **{f"test.{n}": t for n, t in tests.items()}}.items():
-        ids[k] = {"path": str(p), "dataset_id": json.loads((p / "manifest.json").read_text()).get("dataset_id")}
-    return {"train": str(train), "test": {n: str(t) for n, t in tests.items()}, "datasets": ids}
+    out: dict[str, Any] = {"train": str(train), "datasets": {"train": _identity(train)}}
+    if tests:
+        found = {name: _resolve(src, f"data.test.{name}", folder, ("test",), log) for name, src in cfg.data.test.items()}
+        out["test"] = {n: str(t) for n, t in found.items()}
+        out["datasets"].update({f"test.{n}": _identity(t) for n, t in found.items()})
+    return out
+
+
+def _identity(path: Path) -> dict[str, Any]:
+    return {"path": str(path), "dataset_id": json.loads((Path(path) / "manifest.json").read_text()).get("dataset_id")}
 
 
 def load_split(data: dict[str, Any], cfg: DetectionConfig, which: str) -> list[SequenceData]:
@@ -132,7 +138,7 @@ def train(config_source: str | Path | dict, run_dir: Path, log: Log = print) -> 
         if old != json.loads(cfg.model_dump_json()):
             raise UserInputError(f"--out: {str(run_dir)!r} holds a run of another config; choose a new folder")
     t0 = time.perf_counter()
-    data = resolve_data(cfg, run_dir, log)
+    data = resolve_data(cfg, run_dir, log, tests=False)
     run_dir.mkdir(parents=True, exist_ok=True)
     write_json(run_dir / "config.json", json.loads(cfg.model_dump_json()))
     torch.set_num_threads(cfg.train.threads)
@@ -383,6 +389,9 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
     cfg = load_detection_config(json.loads((run_dir / "config.json").read_text()))
     data = json.loads((run_dir / "data.json").read_text())
     t0 = time.perf_counter()
+    if "test" not in data:
+        data.update(resolve_data(cfg, run_dir, log, tests=True))
+        write_json(run_dir / "data.json", data)
     torch.set_num_threads(cfg.train.threads)
     models = load_models(run_dir, cfg)
     keys = _keys(cfg)
