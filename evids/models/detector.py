@@ -10,7 +10,7 @@ context) give a ``(B, C, H/4, W/4)`` map; every location carries
 - a box: sub-cell centre offset ``(dx, dy)`` in cells and ``log w, log h`` in pixels.
 
 Why this shape: the targets are 3-30 px wide, so a stride-4 map gives 1-8 cells per target with no
-anchors to tune, and the whole network is ~30 k parameters (CPU frames/s in benchmarks/detection.py).
+anchors to tune, and at width 16 the network has 7.6 k parameters (CPU frames/s in benchmarks/detection.py).
 
 Label assignment: the cell holding the box centre and every cell whose centre lies inside the box
 shrunk to half size are positives; other cells inside the box are ignored; the rest are background.
@@ -58,7 +58,7 @@ class DetectorOutput:
 
     @property
     def vacuity(self) -> Tensor:
-        """``u = K / S`` (evidential) or ``1 - max(p, 1 - p)``-free stand-in: NaN for sigmoid heads."""
+        """Vacuity ``u = K / S`` per location (evidential heads); NaN for sigmoid heads, which have none."""
         if self.alpha is None:
             return torch.full_like(self.prob, float("nan"))
         return 2.0 / self.alpha.sum(dim=-1)

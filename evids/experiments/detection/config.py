@@ -154,16 +154,16 @@ FULL_CONFIG: dict[str, Any] = {
     "data": {"root": "data", "train": {"generate": "detection_train", "seed": 0},
              "test": {s: {"generate": f"detection_test_{s}", "seed": 0} for s in _SETS},
              "degradations": _DEGRADATIONS},
-    "train": {"steps": 500, "workers": 5},
+    "train": {"steps": 1500, "workers": 5},
 }
 
 DEMO_CONFIG: dict[str, Any] = {
     "name": "detection_demo",
-    "data": {"root": "data", "train": {"generate": "detection_train", "seed": 0, "sequences": 24, "frames": 20},
+    "data": {"root": "detection_data", "train": {"generate": "detection_train", "seed": 0, "sequences": 24, "frames": 20},
              "test": {s: {"generate": f"detection_test_{s}", "seed": 0, "sequences": 4, "frames": 20}
                       for s in ("control", "crossover", "lowlight")},
              "degradations": _DEGRADATIONS},
-    "train": {"steps": 250, "workers": 5},
+    "train": {"steps": 600, "workers": 5},
     "bootstrap": {"n_resamples": 1000},
 }
 

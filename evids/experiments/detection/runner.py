@@ -299,12 +299,12 @@ def _seq_state(frames: list[FrameDetections], gt: list, det_thr: float, theta: f
 def fit_tracking(val: list[tuple[SequenceData, dict]], key: str, cfg: DetectionConfig, tau_det_grid: bool = False) -> dict[str, float]:
     """Grid search on val for the detection threshold and the tracker's switching threshold theta
     (and tau_det for condition (c)), maximising mean per-sequence state accuracy."""
-    det_grid = [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
+    det_grid = [0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9]
     unc_all = np.concatenate([np.concatenate([f.uncertainty for f in out["dets"][key][0]] or [np.zeros(0)])
                               for _, out in val]) if val else np.zeros(0)
     qs = np.unique(np.quantile(unc_all, [0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 1.0])) if unc_all.size else np.array([1.0])
     theta_grid = [float(q) + 1e-9 for q in qs] if cfg.tracker.theta is None else [cfg.tracker.theta]
-    tau_grid = [None] + ([float(q) + 1e-9 for q in qs[:-1]] if tau_det_grid else [])
+    tau_grid = [None] + ([float(q) + 1e-9 for q in qs] if tau_det_grid else [])
     best = {"score": -1.0}
     for d in det_grid:
         for th in theta_grid:

@@ -1,5 +1,6 @@
 """Seeded training of the detectors: per stream (RGB, thermal) x head (sigmoid, evidential), and
-the feature-fusion baseline. Adam, fixed number of steps on random crops, torch seeded per model."""
+the feature-fusion baseline. AdamW + one-cycle schedule, a fixed number of steps on random crops
+drawn from a numpy Generator; weights initialised inside ``seeded_init`` (caller's RNG untouched)."""
 from __future__ import annotations
 
 import time
@@ -9,6 +10,7 @@ import numpy as np
 import torch
 
 from evids.experiments.detection.data import SequenceData, rng, sample_crops
+from evids.models.backbones import seeded_init
 from evids.models.detector import CentreDetector, FeatureFusionDetector, detection_loss, encode_targets
 
 MODEL_IDS = {"rgb_sigmoid": 1, "thermal_sigmoid": 2, "rgb_evidential": 3, "thermal_evidential": 4, "fusion_sigmoid": 5}
@@ -25,8 +27,8 @@ def train_model(name: str, seqs: list[SequenceData], cfg, log=None) -> tuple[tor
     """Train model ``name`` (a key of MODEL_IDS) on the training sequences; returns (model, record)."""
     if name not in MODEL_IDS:
         raise ValueError(f"unknown model {name!r}; valid: {sorted(MODEL_IDS)}")
-    torch.manual_seed(int(np.random.SeedSequence([cfg.seed, MODEL_IDS[name]]).generate_state(1)[0]))
-    model = build_model(name, cfg.width)
+    with seeded_init(int(np.random.SeedSequence([cfg.seed, MODEL_IDS[name]]).generate_state(1)[0])):
+        model = build_model(name, cfg.width)  # weight init: the one global-RNG use, isolated by fork_rng
     gen = rng(cfg.seed, 10, MODEL_IDS[name])
     streams = ("rgb", "thermal") if name == "fusion_sigmoid" else (name.split("_")[0],)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
