@@ -379,9 +379,124 @@ def _crop_uncertainty(model, img: np.ndarray, boxes: np.ndarray, cfg: DetectionC
     return a[torch.arange(len(boxes)), idx].numpy().astype(np.float64)
 
 
-def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
+def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, temperature, fitted, exports: Path,
+                       keys: list[str], want_example: bool) -> dict[str, Any]:
+    """Conditions, tracking and per-detection/crop/frame rows of one test sequence."""
     from evids.experiments.detection import metrics as M
     from evids.fusion import dempster_shafer
+
+    per_seq: list[dict[str, Any]] = []
+    det_rows: list[dict[str, Any]] = []
+    crop_rows: list[dict[str, Any]] = []
+    frame_rows: list[dict[str, Any]] = []
+    coco_dets: dict[str, list] = {}
+    example = None
+    maps = compute_maps(seq, models)
+    out = condition_dets(seq, maps, cfg, gate, temperature)
+    video = f"{seq.set_name}_{seq.name}"
+    ex = out["extra"]
+    for t in range(seq.n_frames):
+        frame_rows.append({"set": seq.set_name, "sequence": video, "frame": t, "exist": seq.gt_rgb[t] is not None,
+                           "exist_thermal": seq.gt_thermal[t] is not None,
+                           "rgb_observed": bool(seq.rgb_observed[t]), "thermal_observed": bool(seq.thermal_observed[t]),
+                           "contrast_k": seq.contrast_k[t], "netd_k": seq.netd_k,
+                           "thermal_u_at_target": ex.get("thermal_u_at_target", [np.nan] * seq.n_frames)[t],
+                           "thermal_p_at_target": ex.get("thermal_p_at_target", [np.nan] * seq.n_frames)[t],
+                           "rgb_u_at_target": ex.get("rgb_u_at_target", [np.nan] * seq.n_frames)[t],
+                           "rgb_p_at_target": ex.get("rgb_p_at_target", [np.nan] * seq.n_frames)[t],
+                           "ds_conflict_at_target": (ex.get("ds_conflict_at_target") if ex.get("ds_conflict_at_target") is not None
+                                                     else [np.nan] * seq.n_frames)[t]})
+    if ex.get("gate") is not None:
+        ev = ex["gate"]["evaluated"]
+        per_seq.append({"set": seq.set_name, "sequence": video, "key": "_gate", "rgb_evaluated": float(ev[:, 0].mean()),
+                        "thermal_evaluated": float(ev[:, 1].mean()), "rgb_fused": float(ex["gate"]["fused"][:, 0].mean()),
+                        "thermal_fused": float(ex["gate"]["fused"][:, 1].mean())})
+    for key in keys:
+        if key not in out["dets"]:
+            continue
+        frames, decoded = out["dets"][key]
+        gt = gt_of(seq, key)
+        f = fitted[key]
+        steps = run_tracker(frames, f["det_threshold"], f["theta"], cfg.tracker.search_px, f.get("tau_det"))
+        boxes_out = [s.box for s in steps]
+        M.write_mot_tracker(exports / "mot" / "trackers" / f"{'IR' if key.endswith('/thermal') else 'RGB'}-{seq.set_name}"
+                            / _tracker_name(key) / "data" / f"{video}.txt", boxes_out, [s.score for s in steps],
+                            [s.track_id for s in steps])
+        label_file = exports / "antiuav" / seq.set_name / (video if key.endswith("/thermal") else f"{video}_visible") / (
+            "IR_label.json" if key.endswith("/thermal") else "visible.json")
+        sa = M.antiuav_state_accuracy(label_file, boxes_out)
+        vals = M.per_frame_state_values(boxes_out, gt)
+        th_blind = np.array([g is not None for g in gt]) & ~seq.thermal_observed
+        rgb_blind = np.array([g is not None for g in gt]) & ~seq.rgb_observed
+        exist = np.array([g is not None for g in gt])
+        per_seq.append({"set": seq.set_name, "sequence": video, "key": key, "state_acc": sa["plain"],
+                        "state_acc_penalised": sa["penalised"],
+                        "acc_thermal_blind": float(vals[th_blind].mean()) if th_blind.any() else np.nan,
+                        "acc_rgb_blind": float(vals[rgb_blind].mean()) if rgb_blind.any() else np.nan,
+                        "trk_on_abs": tracking_on_absence(steps, exist), "absent_frames": int((~exist).sum()),
+                        "handovers": int(sum(s.handed_over for s in steps)),
+                        "tracker_share": float(np.mean([s.in_control == "tracker" for s in steps]))})
+        coco_dets.setdefault(f"{seq.set_name}|{key}", []).extend(
+            (video, t, fr.boxes, fr.scores) for t, fr in enumerate(frames))
+        for t, (fr, d) in enumerate(zip(frames, decoded)):
+            all_gt = (seq.boxes_thermal if key.endswith("/thermal") else seq.boxes_rgb)[t]
+            tp = M.detections_matched(fr.boxes, fr.scores, all_gt)
+            for i in range(fr.boxes.shape[0]):
+                p = float(fr.scores[i])
+                ent = -(p * np.log(max(p, 1e-300)) + (1 - p) * np.log(max(1 - p, 1e-300)))
+                det_rows.append({"set": seq.set_name, "sequence": video, "key": key, "frame": t, "score": p,
+                                 "unc": float(fr.uncertainty[i]), "entropy": ent, "tp": bool(tp[i]),
+                                 "area": float(fr.boxes[i, 2] * fr.boxes[i, 3])})
+        if key.startswith("b_evidential/"):
+            stream = key.split("/")[1]
+            model = models[f"{stream}_evidential"]
+            x = inputs(seq)
+            other = "thermal" if stream == "rgb" else "rgb"
+            for t, fr in enumerate(frames):
+                top = np.argsort(-fr.scores, kind="stable")[:5]
+                if top.size == 0:
+                    continue
+                img = x[stream][t].numpy()
+                a = _crop_uncertainty(model, img, fr.boxes[top], cfg)
+                all_gt = (seq.boxes_thermal if stream == "thermal" else seq.boxes_rgb)[t]
+                tp = M.detections_matched(fr.boxes[top], fr.scores[top], all_gt)
+                avg_u = np.full(top.size, np.nan)
+                if seq.registered:
+                    b_other = _crop_uncertainty(models[f"{other}_evidential"], x[other][t].numpy(), fr.boxes[top], cfg)
+                    avg_u = 2.0 / ((a + b_other) / 2).sum(1)
+                ds = dempster_shafer(torch.tensor(np.stack([a, a])))
+                for i in range(top.size):
+                    crop_rows.append({"set": seq.set_name, "sequence": video, "stream": stream, "frame": t,
+                                      "tp": bool(tp[i]), "anchor_u": float(fr.uncertainty[top[i]]),
+                                      "crop_u": float(2.0 / a[i].sum()), "crop_u_avg": float(avg_u[i]),
+                                      "crop_u_ds_identical": float(ds.u[i]),
+                                      "area": float(fr.boxes[top[i], 2] * fr.boxes[top[i], 3])})
+    if want_example and seq.set_name == cfg.crossover_set:
+        example = _example_frames(seq, maps, out, fitted, cfg)
+    return {"per_seq": per_seq, "det_rows": det_rows, "crop_rows": crop_rows, "frame_rows": frame_rows,
+            "coco_dets": coco_dets, "example": example}
+
+_WORKER: dict[str, Any] = {}
+
+
+def _worker_init(cfg_dict: dict, run_dir: str) -> None:
+    """Per-process state for parallel evaluation: the config and the frozen models."""
+    cfg = load_detection_config(cfg_dict)
+    torch.set_num_threads(1 if cfg.train.workers > 1 else cfg.train.threads)
+    _WORKER["cfg"] = cfg
+    _WORKER["models"] = load_models(Path(run_dir), cfg)
+
+
+def _evaluate_entry(args, set_name: str, dataset_index: int, entry: dict) -> dict[str, Any]:
+    _, _, gate, temperature, fitted, exports, keys = args
+    cfg = _WORKER["cfg"]
+    seq = load_sequence(entry, set_name, cfg, cfg.train.seed, dataset_index)
+    first = entry["name"] == "seq000001"
+    return _evaluate_sequence(seq, _WORKER["models"], cfg, gate, temperature, fitted, Path(exports), keys, first)
+
+
+def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
+    from evids.experiments.detection import metrics as M
 
     run_dir = Path(run_dir)
     if not (run_dir / "config.json").is_file() or not (run_dir / "data.json").is_file():
@@ -438,98 +553,35 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
         for e in ents:
             export_antiuav(Path(e["path"]), exports / "antiuav" / set_name, e["video"])
 
-    test_seqs = load_split(data, cfg, "test")
-    per_seq: list[dict[str, Any]] = []
-    det_rows: list[dict[str, Any]] = []
-    crop_rows: list[dict[str, Any]] = []
-    frame_rows: list[dict[str, Any]] = []
+    entries = [(name, k + 1, e) for k, (name, path) in enumerate(sorted(data["test"].items()))
+               for e in dataset_entries(Path(path), ("test",), f"data.test.{name}") if e["split"] == "test"]
+    args = (json.loads(cfg.model_dump_json()), str(run_dir), gate, temperature, fitted, str(exports), keys)
+    workers = min(cfg.train.workers, len(entries))
+    results = []
+    if workers > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"), initializer=_worker_init, initargs=args[:2]) as pool:
+            futures = [pool.submit(_evaluate_entry, args, name, k, e) for name, k, e in entries]
+            for i, f in enumerate(futures):
+                results.append(f.result())
+                if (i + 1) % 6 == 0 or i + 1 == len(futures):
+                    log(f"  {i + 1}/{len(futures)} test sequences")
+    else:
+        _worker_init(*args[:2])
+        results = [_evaluate_entry(args, name, k, e) for name, k, e in entries]
+    per_seq = [r for res in results for r in res["per_seq"]]
+    det_rows = [r for res in results for r in res["det_rows"]]
+    crop_rows = [r for res in results for r in res["crop_rows"]]
+    frame_rows = [r for res in results for r in res["frame_rows"]]
     coco_dets: dict[str, list] = {}
-    example = None
-    for seq in test_seqs:
-        maps = compute_maps(seq, models)
-        out = condition_dets(seq, maps, cfg, gate, temperature)
-        video = f"{seq.set_name}_{seq.name}"
-        ex = out["extra"]
-        for t in range(seq.n_frames):
-            frame_rows.append({"set": seq.set_name, "sequence": video, "frame": t, "exist": seq.gt_rgb[t] is not None,
-                               "exist_thermal": seq.gt_thermal[t] is not None,
-                               "rgb_observed": bool(seq.rgb_observed[t]), "thermal_observed": bool(seq.thermal_observed[t]),
-                               "contrast_k": seq.contrast_k[t], "netd_k": seq.netd_k,
-                               "thermal_u_at_target": ex.get("thermal_u_at_target", [np.nan] * seq.n_frames)[t],
-                               "thermal_p_at_target": ex.get("thermal_p_at_target", [np.nan] * seq.n_frames)[t],
-                               "rgb_u_at_target": ex.get("rgb_u_at_target", [np.nan] * seq.n_frames)[t],
-                               "rgb_p_at_target": ex.get("rgb_p_at_target", [np.nan] * seq.n_frames)[t],
-                               "ds_conflict_at_target": (ex.get("ds_conflict_at_target") if ex.get("ds_conflict_at_target") is not None
-                                                         else [np.nan] * seq.n_frames)[t]})
-        if ex.get("gate") is not None:
-            ev = ex["gate"]["evaluated"]
-            per_seq.append({"set": seq.set_name, "sequence": video, "key": "_gate", "rgb_evaluated": float(ev[:, 0].mean()),
-                            "thermal_evaluated": float(ev[:, 1].mean()), "rgb_fused": float(ex["gate"]["fused"][:, 0].mean()),
-                            "thermal_fused": float(ex["gate"]["fused"][:, 1].mean())})
-        for key in keys:
-            if key not in out["dets"]:
-                continue
-            frames, decoded = out["dets"][key]
-            gt = gt_of(seq, key)
-            f = fitted[key]
-            steps = run_tracker(frames, f["det_threshold"], f["theta"], cfg.tracker.search_px, f.get("tau_det"))
-            boxes_out = [s.box for s in steps]
-            M.write_mot_tracker(exports / "mot" / "trackers" / f"{'IR' if key.endswith('/thermal') else 'RGB'}-{seq.set_name}"
-                                / _tracker_name(key) / "data" / f"{video}.txt", boxes_out, [s.score for s in steps],
-                                [s.track_id for s in steps])
-            label_file = exports / "antiuav" / seq.set_name / (video if key.endswith("/thermal") else f"{video}_visible") / (
-                "IR_label.json" if key.endswith("/thermal") else "visible.json")
-            sa = M.antiuav_state_accuracy(label_file, boxes_out)
-            vals = M.per_frame_state_values(boxes_out, gt)
-            th_blind = np.array([g is not None for g in gt]) & ~seq.thermal_observed
-            rgb_blind = np.array([g is not None for g in gt]) & ~seq.rgb_observed
-            exist = np.array([g is not None for g in gt])
-            per_seq.append({"set": seq.set_name, "sequence": video, "key": key, "state_acc": sa["plain"],
-                            "state_acc_penalised": sa["penalised"],
-                            "acc_thermal_blind": float(vals[th_blind].mean()) if th_blind.any() else np.nan,
-                            "acc_rgb_blind": float(vals[rgb_blind].mean()) if rgb_blind.any() else np.nan,
-                            "trk_on_abs": tracking_on_absence(steps, exist), "absent_frames": int((~exist).sum()),
-                            "handovers": int(sum(s.handed_over for s in steps)),
-                            "tracker_share": float(np.mean([s.in_control == "tracker" for s in steps]))})
-            coco_dets.setdefault(f"{seq.set_name}|{key}", []).extend(
-                (video, t, fr.boxes, fr.scores) for t, fr in enumerate(frames))
-            for t, (fr, d) in enumerate(zip(frames, decoded)):
-                all_gt = (seq.boxes_thermal if key.endswith("/thermal") else seq.boxes_rgb)[t]
-                tp = M.detections_matched(fr.boxes, fr.scores, all_gt)
-                for i in range(fr.boxes.shape[0]):
-                    p = float(fr.scores[i])
-                    ent = -(p * np.log(max(p, 1e-300)) + (1 - p) * np.log(max(1 - p, 1e-300)))
-                    det_rows.append({"set": seq.set_name, "sequence": video, "key": key, "frame": t, "score": p,
-                                     "unc": float(fr.uncertainty[i]), "entropy": ent, "tp": bool(tp[i]),
-                                     "area": float(fr.boxes[i, 2] * fr.boxes[i, 3])})
-            if key.startswith("b_evidential/"):
-                stream = key.split("/")[1]
-                model = models[f"{stream}_evidential"]
-                x = inputs(seq)
-                other = "thermal" if stream == "rgb" else "rgb"
-                for t, fr in enumerate(frames):
-                    top = np.argsort(-fr.scores, kind="stable")[:5]
-                    if top.size == 0:
-                        continue
-                    img = x[stream][t].numpy()
-                    a = _crop_uncertainty(model, img, fr.boxes[top], cfg)
-                    all_gt = (seq.boxes_thermal if stream == "thermal" else seq.boxes_rgb)[t]
-                    tp = M.detections_matched(fr.boxes[top], fr.scores[top], all_gt)
-                    avg_u = np.full(top.size, np.nan)
-                    if seq.registered:
-                        b_other = _crop_uncertainty(models[f"{other}_evidential"], x[other][t].numpy(), fr.boxes[top], cfg)
-                        avg_u = 2.0 / ((a + b_other) / 2).sum(1)
-                    ds = dempster_shafer(torch.tensor(np.stack([a, a])))
-                    for i in range(top.size):
-                        crop_rows.append({"set": seq.set_name, "sequence": video, "stream": stream, "frame": t,
-                                          "tp": bool(tp[i]), "anchor_u": float(fr.uncertainty[top[i]]),
-                                          "crop_u": float(2.0 / a[i].sum()), "crop_u_avg": float(avg_u[i]),
-                                          "crop_u_ds_identical": float(ds.u[i]),
-                                          "area": float(fr.boxes[top[i], 2] * fr.boxes[top[i], 3])})
-        if example is None and seq.set_name == cfg.crossover_set:
-            example = _example_frames(seq, maps, out, fitted, cfg)
-            np.savez_compressed(run_dir / "example_crossover.npz", **example)
-        del maps, out
+    for res in results:
+        for key, v in res["coco_dets"].items():
+            coco_dets.setdefault(key, []).extend(v)
+    example = next((res["example"] for res in results if res["example"] is not None), None)
+    if example is not None:
+        np.savez_compressed(run_dir / "example_crossover.npz", **example)
     write_csv(run_dir / "tables" / "per_sequence.csv", per_seq)
     write_csv(run_dir / "tables" / "detections.csv", det_rows)
     write_csv(run_dir / "tables" / "crops.csv", crop_rows)
@@ -556,7 +608,8 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
     mark_stage(run_dir, "evaluate_conditions", time.perf_counter() - t0)
     summary = summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, gate)
     log("evaluate: timing the gate (batch 1, real skipped forwards)")
-    summary["gate_timing"] = time_gating(test_seqs, models, cfg, gate) if gate is not None else None
+    timing_seqs = [load_sequence(e, name, cfg, cfg.train.seed, k) for name, k, e in entries if e["name"] in ("seq000001", "seq000002")]
+    summary["gate_timing"] = time_gating(timing_seqs, models, cfg, gate) if gate is not None else None
     summary["headline"] = headline(summary, cfg)
     write_json(run_dir / "metrics.json", summary)
     mark_stage(run_dir, "evaluate", time.perf_counter() - t0)
