@@ -106,7 +106,8 @@ class GateConfig(_Model):
 
 class BootstrapConfig(_Model):
     seed: int = Field(default=0, ge=0)
-    n_resamples: int = Field(default=2000, ge=100, le=100_000)
+    n_resamples: int = Field(default=2000, ge=100, le=100_000, description="paired per-sequence comparisons")
+    n_resamples_uauc: int = Field(default=300, ge=50, le=100_000, description="UAUC / Spearman CIs (tens of thousands of rows each)")
 
 
 class DetectionConfig(_Model):
@@ -159,18 +160,18 @@ FULL_CONFIG: dict[str, Any] = {
 
 DEMO_CONFIG: dict[str, Any] = {
     "name": "detection_demo",
-    "data": {"root": "detection_data", "train": {"generate": "detection_train", "seed": 0, "sequences": 24, "frames": 20},
-             "test": {s: {"generate": f"detection_test_{s}", "seed": 0, "sequences": 4, "frames": 20}
+    "data": {"root": "detection_data", "train": {"generate": "detection_train", "seed": 0, "sequences": 16, "frames": 16},
+             "test": {s: {"generate": f"detection_test_{s}", "seed": 0, "sequences": 3, "frames": 16}
                       for s in ("control", "crossover", "lowlight")},
              "degradations": _DEGRADATIONS},
-    "train": {"steps": 600, "workers": 5},
+    "train": {"steps": 400, "workers": 5},
     "bootstrap": {"n_resamples": 1000},
 }
 
 TINY_CONFIG: dict[str, Any] = {
     "name": "detection_tiny",
-    "data": {"root": "data", "train": {"generate": "detection_train", "seed": 0, "sequences": 5, "frames": 6},
-             "test": {"crossover": {"generate": "detection_test_crossover", "seed": 0, "sequences": 2, "frames": 6}},
+    "data": {"root": "data", "train": {"generate": "detection_train", "seed": 0, "sequences": 4, "frames": 4},
+             "test": {"crossover": {"generate": "detection_test_crossover", "seed": 0, "sequences": 2, "frames": 4}},
              "degradations": _DEGRADATIONS},
     "train": {"steps": 3, "batch_size": 4, "width": 8, "crop_px": 64},
     "bootstrap": {"n_resamples": 100},

@@ -41,9 +41,6 @@ def write_coco_gt(entries: list[dict[str, Any]], modality: str, path: Path) -> d
 def coco_ap50(gt_path: Path, results_path: Path, detections: list[tuple[str, int, np.ndarray, np.ndarray]],
               image_ids: dict[str, int]) -> float:
     """Write the COCO results file and return COCOeval's AP at IoU 0.5 for category 1 (drone)."""
-    from pycocotools.coco import COCO
-    from pycocotools.cocoeval import COCOeval
-
     results = []
     for video, frame0, boxes, scores in detections:
         iid = image_ids[f"{video}/{frame0}"]
@@ -52,7 +49,15 @@ def coco_ap50(gt_path: Path, results_path: Path, detections: list[tuple[str, int
                             "score": round(float(s), 6)})
     Path(results_path).parent.mkdir(parents=True, exist_ok=True)
     Path(results_path).write_text(json.dumps(results))
-    if not results:
+    return coco_ap50_file(gt_path, results_path)
+
+
+def coco_ap50_file(gt_path: Path, results_path: Path) -> float:
+    """COCOeval AP50 (category drone) of a COCO results file against a COCO ground-truth file."""
+    from pycocotools.coco import COCO
+    from pycocotools.cocoeval import COCOeval
+
+    if not json.loads(Path(results_path).read_text()):
         return 0.0
     with contextlib.redirect_stdout(io.StringIO()):
         gt = COCO(str(gt_path))

@@ -605,14 +605,51 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
                 res = M.trackeval_mot(exports / "mot" / "gt", exports / "mot" / "trackers", bench, set_name, trackers)
                 for tr, rows in res.items():
                     mot[f"{set_name}|{tr.replace('__', '/')}"] = rows
+    write_json(run_dir / "tables" / "tools.json", {"ap50": ap50, "mot": mot})
     mark_stage(run_dir, "evaluate_conditions", time.perf_counter() - t0)
-    summary = summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, gate)
     log("evaluate: timing the gate (batch 1, real skipped forwards)")
     timing_seqs = [load_sequence(e, name, cfg, cfg.train.seed, k) for name, k, e in entries if e["name"] in ("seq000001", "seq000002")]
-    summary["gate_timing"] = time_gating(timing_seqs, models, cfg, gate) if gate is not None else None
+    write_json(run_dir / "tables" / "gate_timing.json", time_gating(timing_seqs, models, cfg, gate) if gate is not None else None)
+    log("evaluate: statistics")
+    summary = summarise_run(run_dir)
+    mark_stage(run_dir, "evaluate", time.perf_counter() - t0)
+    return summary
+
+
+_TEXT_FIELDS = {"set", "sequence", "key", "stream"}
+
+
+def _read_rows(path: Path) -> list[dict[str, Any]]:
+    import csv
+
+    def conv(k: str, v: str) -> Any:
+        if k in _TEXT_FIELDS:
+            return v
+        if v in ("True", "False"):
+            return v == "True"
+        if v == "":
+            return float("nan")
+        try:
+            return float(v)
+        except ValueError:
+            return v
+
+    with open(path, newline="") as fh:
+        return [{k: conv(k, v) for k, v in row.items()} for row in csv.DictReader(fh)]
+
+
+def summarise_run(run_dir: Path) -> dict[str, Any]:
+    """Statistics and headline answers from a run folder's tables (re-runnable without the models)."""
+    run_dir = Path(run_dir)
+    cfg = load_detection_config(json.loads((run_dir / "config.json").read_text()))
+    t = run_dir / "tables"
+    tools = json.loads((t / "tools.json").read_text())
+    fitted = json.loads((run_dir / "fitted.json").read_text())
+    summary = summarise(cfg, _read_rows(t / "per_sequence.csv"), _read_rows(t / "detections.csv"), _read_rows(t / "crops.csv"),
+                        _read_rows(t / "frames.csv"), tools["ap50"], tools["mot"], fitted["tracking"], fitted["gate"])
+    summary["gate_timing"] = json.loads((t / "gate_timing.json").read_text())
     summary["headline"] = headline(summary, cfg)
     write_json(run_dir / "metrics.json", summary)
-    mark_stage(run_dir, "evaluate", time.perf_counter() - t0)
     return summary
 
 
@@ -654,6 +691,7 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
     from evids.metrics import detection_ece
 
     seed, nb = cfg.bootstrap.seed, cfg.bootstrap.n_resamples
+    nb_u = cfg.bootstrap.n_resamples_uauc
     keys = _keys(cfg)
     sets = sorted({r["set"] for r in per_seq})
     table = []
@@ -722,7 +760,7 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
                 unc.append({"level": "anchor", "key": key, "stratum": stratum, "score": name,
                             "mean_u_tp": mean_u_tp if name == "vacuity" else np.nan,
                             "mean_u_fp": mean_u_fp if name == "vacuity" else np.nan,
-                            **M.clustered_uauc(u, err, cl, seed, nb)})
+                            **M.clustered_uauc(u, err, cl, seed, nb_u)})
     for stream in ("rgb", "thermal"):
         rows = [r for r in crop_rows if r["stream"] == stream]
         if not rows:
@@ -740,7 +778,7 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
                 if ok.sum() == 0:
                     continue
                 unc.append({"level": "crop" if name != "anchor_u" else "anchor (same detections)", "key": f"b_evidential/{stream}",
-                            "stratum": stratum, "score": name, **M.clustered_uauc(u[ok], err[ok], cl[ok], seed, nb)})
+                            "stratum": stratum, "score": name, **M.clustered_uauc(u[ok], err[ok], cl[ok], seed, nb_u)})
     # thermal vacuity against |dT| / NETD on frames with the target in the thermal frame
     fr = [r for r in frame_rows if r["exist_thermal"] and np.isfinite(r["contrast_k"]) and np.isfinite(r["thermal_u_at_target"])]
     vac = {}
@@ -749,8 +787,8 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
         u = np.array([r["thermal_u_at_target"] for r in fr])
         p = np.array([r["thermal_p_at_target"] for r in fr])
         cl = np.array([r["sequence"] for r in fr])
-        vac["spearman_u"] = M.spearman_clustered(ratio, u, cl, seed, nb)
-        vac["spearman_p"] = M.spearman_clustered(ratio, p, cl, seed, nb)
+        vac["spearman_u"] = M.spearman_clustered(ratio, u, cl, seed, nb_u)
+        vac["spearman_p"] = M.spearman_clustered(ratio, p, cl, seed, nb_u)
         bins = [0, 1, 2, 4, 8, 16, 1e9]
         vac["bins"] = [{"lo": lo, "hi": hi, "n": int(((ratio >= lo) & (ratio < hi)).sum()),
                         "mean_u": float(u[(ratio >= lo) & (ratio < hi)].mean()) if ((ratio >= lo) & (ratio < hi)).any() else np.nan,

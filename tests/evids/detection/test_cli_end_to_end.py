@@ -71,7 +71,7 @@ def test_unknown_named_config_is_refused(tmp_path, capsys):
 
 
 def test_tiny_end_to_end(tmp_path):
-    """Generate 5 + 2 sequences of 6 frames, train every detector 3 steps, evaluate all eight
+    """Generate 4 + 2 sequences of 4 frames, train every detector 3 steps, evaluate all eight
     conditions through COCOeval / TrackEval / the Anti-UAV labels, and write the report."""
     out = tmp_path / "run"
     assert _run(["detect", "run", "--config", "tiny", "--out", str(out)]) == 0
