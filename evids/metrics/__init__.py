@@ -33,7 +33,7 @@ from evids.metrics.detection import (
     mot_metrics,
     state_accuracy,
 )
-from evids.metrics.tracking import hota
+from evids.metrics.tracking import hota, track_scores
 
 __all__ = [
     "BootstrapResult",
@@ -58,6 +58,7 @@ __all__ = [
     "paired_bootstrap",
     "plot_reliability",
     "reliability_diagram",
+    "track_scores",
     "state_accuracy",
     "uauc",
 ]

@@ -65,7 +65,7 @@ class DataConfig(_Model):
     test: dict[str, DatasetSource] = Field(min_length=1)
     degradations: dict[str, StreamDegradations] = Field(
         default_factory=dict, description="scene tag (preset name without det_ and _a/_b) -> load-time degradations")
-    thermal_netd_noise: bool = Field(default=True, description="add temporal NETD noise (sigma = camera netd_k) at load")
+    thermal_netd_noise: bool = Field(default=True, description="add temporal NETD noise (sigma = camera netd_k) at load, unless the dataset was rendered with the camera model")
 
 
 class TrainConfig(_Model):

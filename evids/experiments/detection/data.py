@@ -166,7 +166,10 @@ def load_sequence(entry: dict[str, Any], set_name: str, config, exp_seed: int, d
     degs = config.data.degradations.get(tag)
     if degs is not None and degs.rgb:
         rgb = np.clip(_apply_degradations(rgb, degs.rgb, base_seed, {"range_m": np.array(ranges)}, log, "rgb"), 0, 1).astype(np.float32)
-    if config.data.thermal_netd_noise:
+    # datasets rendered with the camera model (meta "sensor": {"sensor": "camera", ...}) already carry
+    # NETD noise; only ideal or older renders get it here
+    camera_noise = isinstance(meta.get("sensor"), dict) and meta["sensor"].get("sensor") == "camera"
+    if config.data.thermal_netd_noise and not camera_noise:
         from degradations.registry import apply
 
         s = seed_for(base_seed, 99)
