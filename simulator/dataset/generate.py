@@ -170,9 +170,17 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
             cv2.setNumThreads(int(threads))
         scenario = Scenario.model_validate(task["scenario"])
         cpu0 = time.process_time()
-        written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False)
+        # a worker limited to N threads also writes its PNGs on N threads (no oversubscription)
+        writer = {} if threads is None else {"writer_threads": max(1, int(threads))}
+        from simulator.dataset.sequence import PassTimes
+
+        stages = PassTimes()
+        wall0 = time.perf_counter()
+        written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False,
+                                  times=stages, **writer)
+        stages.seconds["setup + metadata (rest)"] = time.perf_counter() - wall0 - sum(stages.seconds.values())
         return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
-                "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid()}
+                "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid(), "stage_s": stages.seconds}
     except Exception as exc:  # reported per sequence by the driver; other sequences continue
         last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
         where = f" at {Path(last.filename).name}:{last.lineno}" if last else ""
