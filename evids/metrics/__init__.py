@@ -19,7 +19,9 @@ from evids.metrics.classification import (
     accuracy,
     apply_temperature,
     brier,
+    entropy_from_log_probs,
     fit_temperature,
+    fit_temperature_flagged,
     macro_f1,
     nll,
     uauc,
@@ -33,10 +35,24 @@ from evids.metrics.detection import (
     mot_metrics,
     state_accuracy,
 )
+from evids.metrics.significance import (
+    PermutationResult,
+    cluster_means,
+    minimum_detectable_difference,
+    null_rejection_rate,
+    paired_permutation_test,
+)
 from evids.metrics.tracking import hota
 
 __all__ = [
     "BootstrapResult",
+    "PermutationResult",
+    "cluster_means",
+    "minimum_detectable_difference",
+    "null_rejection_rate",
+    "paired_permutation_test",
+    "entropy_from_log_probs",
+    "fit_temperature_flagged",
     "DetectionMatch",
     "ReliabilityData",
     "accuracy",
