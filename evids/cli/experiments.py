@@ -119,7 +119,7 @@ def audit(
     res = audit_clips(clips, split)
     for r in res["baselines"]:
         score = "n/a" if r["score"] is None else f"{r['score']:.3f} [{r['ci_low']:.3f}, {r['ci_high']:.3f}]"
-        typer.echo(f"{r['feature']:<22} {r['model']:<9} {score:<24} {r['status']}")
+        typer.echo(f"{r['variant']:<20} {r['feature']:<20} {r['model']:<9} {score:<24} {r['status']}")
     if json_out is not None:
         import json
 

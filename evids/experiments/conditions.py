@@ -59,10 +59,10 @@ class Prediction:
 
     probs: np.ndarray
     vacuity: np.ndarray | None = None
-    log_probs: np.ndarray | None = None    # exact (N, 2) log-probabilities (entropies without ties)
     conflict: np.ndarray | None = None     # DS: largest step conflict per sample
     fallback: np.ndarray | None = None
     skip_rate: float | None = None
+    log_probs: np.ndarray | None = None    # exact (N, 2) log-probabilities (entropies without ties)
 
 
 def _two(p1: np.ndarray) -> np.ndarray:

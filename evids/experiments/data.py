@@ -34,6 +34,11 @@ class ClipArrays:
     twin: str | None = None          # clip_id of the counterfactual twin (same scene, drone swapped)
     drone_px: np.ndarray | None = None   # (S,) apparent drone size per segment (px), generated data only
     conditions: dict = field(default_factory=dict)
+    snr_db: dict[str, np.ndarray] = field(default_factory=dict)   # per-segment truth: audio, rf link (NaN: none)
+
+    def __post_init__(self) -> None:
+        if not self.scene:
+            self.scene = self.clip_id
 
     @property
     def n_segments(self) -> int:
@@ -132,7 +137,7 @@ def _clip_info(clip, n_segments: int) -> dict:
     """Scene, split, twin and drone size of a clip from its labels JSON (generated data), else the
     scenario folder as the scene (a TRIDENT scenario folder is one recording session)."""
     info: dict = {"scene": f"{clip.label}/{clip.scenario}", "split": None, "twin": None, "drone_px": None,
-                  "conditions": {}}
+                  "conditions": {}, "snr_db": {}}
     if clip.labels_json is None or not Path(clip.labels_json).is_file():
         return info
     try:
@@ -149,6 +154,12 @@ def _clip_info(clip, n_segments: int) -> dict:
     if meta.get("drone_px") is not None:
         info["drone_px"] = np.asarray(meta["drone_px"], np.float64)[:n_segments]
     info["conditions"] = dict(meta.get("conditions") or {})
+    seg = meta.get("segments") or {}
+    snr = {}
+    for key, name in (("audio_snr_db", "audio"), ("rf_link_snr_db", "rf")):
+        if isinstance(seg.get(key), list):
+            snr[name] = np.array([np.nan if v is None else float(v) for v in seg[key]], np.float64)[:n_segments]
+    info["snr_db"] = snr
     return info
 
 

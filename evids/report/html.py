@@ -111,8 +111,8 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | N
     b, d, e = _cond(ev, "b"), _cond(ev, "d"), _cond(ev, "e")
     comps = {x["comparison"]: x for x in ev.get("comparisons", ev.get("bootstrap", []))}
     if audit:
-        bad = [r for r in audit["baselines"] if r.get("beats_chance")]
-        scored = [r for r in audit["baselines"] if r.get("score") is not None]
+        bad = [r for r in audit["baselines"] if r.get("beats_chance") and r.get("decisive", True)]
+        scored = [r for r in audit["baselines"] if r.get("score") is not None and r.get("decisive", True)]
         worst = max(scored, key=lambda r: abs(r["score"] - 0.5)) if scored else None
         out.append("<b>Shortcut audit:</b> " + (
             f"SHORTCUT: {', '.join(r['feature'] + '/' + r['model'] for r in bad)} beat chance beyond the CI, so "
@@ -153,10 +153,9 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | N
         progs = [p for p in conflict["programs"] if p.get("n_targeted")]
         bites = [p for p in progs if p["status"] == "bites"]
         differ = [p for p in progs if p.get("ds_average_disagree_rate", 0) > 0]
+        weak = ", ".join(f"{p['program']} {100 * p['flip_rate']:.0f}%" for p in progs if p["status"] != "bites")
         s = (f"<b>Conflict that bites:</b> {len(bites)} of {len(progs)} programs flip the compromised modality's vote "
-             f"on &ge; half of their targeted segments"
-             + (f" (not: {', '.join(p['program'] + f' {100 * p[chr(102) + 'lip_rate']:.0f}%' for p in progs if p['status'] != 'bites')})"
-                if len(bites) < len(progs) else "") + ". ")
+             f"on &ge; half of their targeted segments" + (f" (not: {weak})" if weak else "") + ". ")
         if differ:
             top = max(differ, key=lambda p: p["ds_average_disagree_rate"])
             dc = top["ds_vs_average"]
@@ -184,7 +183,7 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | N
 
 
 def _audit_html(audit: dict) -> str:
-    rows = [[r["feature"], r["model"], f"{r['n_train'][0]}/{r['n_train'][1]}", f"{r['n_test'][0]}/{r['n_test'][1]}",
+    rows = [[r.get("variant", "observed"), r["feature"], r["model"], f"{r['n_train'][0]}/{r['n_train'][1]}", f"{r['n_test'][0]}/{r['n_test'][1]}",
              _fmt(r.get("n_test_scenes")), _fmt(r.get("score"), pct=True), _fmt(r.get("ci_low"), pct=True),
              _fmt(r.get("ci_high"), pct=True), html.escape(r["status"])] for r in audit["baselines"]]
     verdict = ("<b style='color:#b00'>SHORTCUT FOUND</b>: a target-blind baseline beats chance; the class is "
@@ -194,8 +193,10 @@ def _audit_html(audit: dict) -> str:
             "scored on test; balanced accuracy (chance 50%), 95% CI by resampling test scenes. Features describe the "
             "scene, not the drone: median frame colour, colour of the target-free top/bottom strips, mean MFCC and "
             "mean RF spectrum on segments where the simulator says that sensor does not observe the drone. "
-            "n = drone/background segments.</p>" + _table(
-                ["feature", "model", "n train", "n test", "test scenes", "balanced acc %", "CI low", "CI high",
+            "n = drone/background segments. Where twins exist the <i>twin_counterfactual</i> rows decide (a drone clip's "
+            "features taken from its drone-absent twin: only a difference other than the drone can be learned); "
+            "<i>observed</i> rows above chance there show drone signal in the feature, not a shortcut.</p>" + _table(
+                ["variant", "feature", "model", "n train", "n test", "test scenes", "balanced acc %", "CI low", "CI high",
                  "status"], rows, "audit"))
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from evids.experiments.data import ClipArrays
+from simulator.formats.trident import mfcc_segments
 
 S = 8            # segments per clip
 FS = 8000.0      # only the waveform length matters here
@@ -21,19 +22,19 @@ def _scene_content(rng: np.random.Generator, confounded: bool, label: int):
         sky = sky + (np.array([-25, -10, 30]) if label == 0 else np.array([15, 15, 15]))
     video = np.broadcast_to(sky.astype(np.uint8), (S, 7, 112, 112, 3)).copy()
     video += rng.integers(0, 6, video.shape, dtype=np.uint8)
-    mfcc = rng.normal(0.0, 1.0, (S, 1, 40, 40)).astype(np.float32) + rng.uniform(-1, 1)
     rf = np.clip(rng.normal(0.2, 0.02, (S, 112, 112)), 0, 1).astype(np.float32)
-    audio = rng.normal(0, 0.01, int(S * 0.25 * FS)).astype(np.float32)
-    return video, mfcc, rf, audio
+    audio = (rng.normal(0, 0.01, int(S * 0.25 * FS)) * rng.uniform(0.5, 2.0)).astype(np.float32)
+    return video, rf, audio
 
 
-def _add_drone(video, mfcc, rf, rng):
-    video, mfcc, rf = video.copy(), mfcc.copy(), rf.copy()
+def _add_drone(video, rf, audio, rng):
+    video, rf = video.copy(), rf.copy()
     y, x = rng.integers(30, 70, 2)
     video[:, :, y:y + 8, x:x + 8] = 30
-    mfcc[:, :, 10:14, :] += 4.0
     rf[:, 40:44, :] = 0.9
-    return video, mfcc, rf
+    t = np.arange(audio.size) / FS
+    tone = 0.05 * sum(np.sin(2 * np.pi * f * t) for f in (700.0, 1400.0, 2100.0))
+    return video, rf, (audio + tone).astype(np.float32)
 
 
 def make_clips(n_scenes: int, seed: int = 0, confounded: bool = False, twins: bool = True,
@@ -49,7 +50,8 @@ def make_clips(n_scenes: int, seed: int = 0, confounded: bool = False, twins: bo
         labels = (0, 1) if twins else (j % 2,)
         base = _scene_content(rng, confounded, labels[0])
         for label in labels:
-            video, mfcc, rf, audio = base if label == 1 else (*_add_drone(*base[:3], rng), base[3])
+            video, rf, audio = base if label == 1 else _add_drone(*base, rng)
+            mfcc = mfcc_segments(audio, FS, S)
             obs = {m: np.full(S, label == 0) for m in ("video", "audio", "rf")}
             cid = f"{['Drone', 'Background'][label]}/scene_{j:03d}/{2 * j + 1 + label}"
             twin = f"{['Background', 'Drone'][label]}/scene_{j:03d}/{2 * j + 2 - label}" if twins else None

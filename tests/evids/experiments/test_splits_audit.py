@@ -59,7 +59,7 @@ def test_audit_flags_a_confounded_fixture():
     res = audit_clips(clips, dataset_split(clips), seed=0, n_resamples=300, min_segments=4)
     colour = [r for r in res["baselines"] if r["feature"] == "video_median_colour"]
     assert res["shortcut"] and all(r["beats_chance"] for r in colour), colour
-    assert all(r["score"] > 0.8 for r in colour)
+    assert all(r["score"] > 0.65 for r in colour)
 
 
 def test_audit_without_splits_names_the_field():
