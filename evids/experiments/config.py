@@ -64,8 +64,11 @@ class ModelsConfig(_Model):
     seeds: list[int] = Field(default=[0, 1, 2], min_length=1, description="training seeds (>= 3 for a training-variance +-)")
     width: int = Field(default=8, ge=2, le=256)
     embedding: int = Field(default=32, ge=4, le=1024)
-    video_pool: int = Field(default=2, ge=1, le=8, description="stride of the first (full-resolution) video conv")
-    video_frames: int = Field(default=3, ge=1, le=7, description="frames of the 7 the video model uses")
+    video_pool: int = Field(default=4, ge=1, le=8, description="stride of the first (full-resolution) video conv")
+    video_frames: int = Field(default=2, ge=1, le=7, description="frames of the 7 the video model uses")
+    torch_threads: int = Field(default=1, ge=1, le=64, description=(
+        "torch threads for training and inference: fixed (results do not depend on the machine's load); "
+        "1 avoids OpenMP spin-contention on a shared 2-core machine"))
     fusion_fit: Literal["val_noisy", "train_clean"] = Field(default="val_noisy", description=(
         "Late Fusion / GMU fitted on validation outputs under the test noise protocol (default) or on clean "
         "train outputs; the other variant is always fitted too, as a labelled control"))
@@ -237,7 +240,7 @@ QUICK_CONFIG: dict[str, Any] = {
     "name": "demo_quick",
     "dataset": {"generate": "trident_scenes_quick", "seed": 7},
     "split": {"source": "dataset"},
-    "models": {"seeds": [0, 1, 2], "train": {"epochs": 4, "patience": 2, "kl_anneal_epochs": 2.0}, "fusion_epochs": 60},
+    "models": {"seeds": [0, 1], "train": {"epochs": 3, "patience": 2, "kl_anneal_epochs": 2.0}, "fusion_epochs": 60},
     "gate": {"tau_high": [0.3, 0.5, 0.7], "tau_low": [0.1, 0.2], "n": [1, 3]},
     "sweep": {"severities": [0.0, 3.0, 5.0], "n_seeds": 1},
     "protocol": {"noise_seeds": [42, 123]},

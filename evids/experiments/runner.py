@@ -156,6 +156,7 @@ def open_run(run_dir: Path, progress: bool = True, need_models: bool = True) -> 
     if need_models and not (run_dir / "models.pt").is_file():
         raise UserInputError(f"{str(run_dir)!r} has no trained models (models.pt); run `evids train` first")
     prep = prepare(cfg.dataset, cfg.split, run_dir, progress)
+    torch.set_num_threads(cfg.models.torch_threads)
     models = load_models(cfg, run_dir / "models.pt") if need_models else None
     return Context(run_dir, cfg, prep, models, progress)
 
@@ -178,7 +179,7 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
     prep = prepare(cfg.dataset, cfg.split, run_dir, progress)
     data_s = time.perf_counter() - t_data
     write_atomic(existing, resolved)
-    torch.set_num_threads(max(1, torch.get_num_threads()))
+    torch.set_num_threads(cfg.models.torch_threads)
     va = prep.split["val"]
     parts = [degrade_clip(prep.clips[i], i, cfg.models.fusion_noise_seed, **_noise_kwargs(cfg, prep, "standard"))
              for i in va]

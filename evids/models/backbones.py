@@ -3,8 +3,8 @@
 Inputs (as produced by :mod:`evids.experiments.data`):
 
 - audio: MFCC ``(B, 1, 40, 40)`` float32 (LeNet-like 2-D CNN);
-- video: ``(B, 7, 112, 112, 3)`` uint8 RGB; a (2+1)-D CNN whose first op is a 5x5 convolution at
-  full resolution (stride 2), so a 3 px target is seen before any downsampling (max-pools after);
+- video: ``(B, 7, 112, 112, 3)`` uint8 RGB; a (2+1)-D CNN whose first op is a 7x7 convolution at
+  full resolution (stride 4), so a 3 px target is seen before any downsampling (max-pools after);
 - rf: spectrogram ``(B, 112, 112)`` float32 in [0, 1] (pooled 2x, small 2-D CNN).
 
 Heads: ``"sigmoid"`` gives one logit (P(class 1) = sigmoid; class 0 = Drone as in TRIDENT),
@@ -47,19 +47,22 @@ class AudioLeNet(nn.Module):
 class VideoNet(nn.Module):
     """Compact (2+1)-D CNN on a 7-frame RGB segment that keeps a 3-30 px target.
 
-    The first operation is a 5x5 convolution at the full 112 px resolution (stride ``pool``), so a
-    3 px drone reaches a learned filter before anything is downsampled; later stages max-pool
+    The first operation is a (pool + 3) x (pool + 3) convolution at the full 112 px resolution with
+    stride ``pool`` (7x7 stride 4 by default: neighbouring windows overlap by 3 px, so every 3 px
+    patch lies wholly inside one window), so a 3 px drone reaches a learned filter before anything
+    is downsampled; later stages max-pool
     (a small dark or bright spot survives a max, not an average) and the embedding is the max over
     space. ``frames`` evenly spaced frames of the 7 are used (temporal cost knob). Each segment's
     mean colour is removed first, so the sky's colour is not a feature.
     """
 
-    def __init__(self, width: int = 8, out_features: int = 32, pool: int = 2, frames: int = 7) -> None:
+    def __init__(self, width: int = 8, out_features: int = 32, pool: int = 4, frames: int = 7) -> None:
         super().__init__()
         self.out_features = out_features
         self.pool = pool
         self.frames = frames
-        self.spatial1 = nn.Conv3d(3, width, (1, 5, 5), stride=(1, pool, pool), padding=(0, 2, 2))
+        k = pool + 3 if pool > 1 else 3
+        self.spatial1 = nn.Conv3d(3, width, (1, k, k), stride=(1, pool, pool), padding=(0, k // 2, k // 2))
         self.temporal1 = nn.Conv3d(width, width, (3, 1, 1), padding=(1, 0, 0))
         self.spatial2 = nn.Conv3d(width, 2 * width, (1, 3, 3), padding=(0, 1, 1))
         self.temporal2 = nn.Conv3d(2 * width, 2 * width, (3, 1, 1), padding=(1, 0, 0))
@@ -101,7 +104,7 @@ class RFNet(nn.Module):
         return self.net(x.unsqueeze(1))
 
 
-def build_backbone(modality: Modality, width: int = 8, out_features: int = 32, video_pool: int = 2,
+def build_backbone(modality: Modality, width: int = 8, out_features: int = 32, video_pool: int = 4,
                    video_frames: int = 7) -> nn.Module:
     """The backbone of one modality."""
     if modality == "audio":
@@ -154,7 +157,7 @@ def seeded_init(seed: int) -> Iterator[None]:
 
 
 def build_model(modality: Modality, head: HeadKind, seed: int, width: int = 8, out_features: int = 32,
-                video_pool: int = 2, video_frames: int = 7) -> UnimodalModel:
+                video_pool: int = 4, video_frames: int = 7) -> UnimodalModel:
     """A freshly initialised model; the same seed gives the same weights."""
     with seeded_init(seed):
         return UnimodalModel(modality, head, build_backbone(modality, width, out_features, video_pool, video_frames))
