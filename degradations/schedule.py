@@ -7,7 +7,7 @@ uniform durations and severities), so the same spec always yields the same event
 """
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -118,7 +118,7 @@ class RandomSchedule(_Model):
         return _events_at(self.events(), t_s, 0.0)
 
 
-Schedule = Annotated[Union[ConstantSchedule, StepSchedule, RampSchedule, RandomSchedule],
+Schedule = Annotated[ConstantSchedule | StepSchedule | RampSchedule | RandomSchedule,
                      Field(discriminator="kind")]
 
 

@@ -156,7 +156,7 @@ def audit_clips(clips: list[ClipArrays], split: dict[str, list[int]], seed: int 
                       "test": [int((te.y == k).sum()) for k in (0, 1)]}
             for model_name in ("logistic", "1nn"):
                 row = {"variant": variant, "feature": feature, "model": model_name, "n_train": counts["train"],
-                       "n_test": counts["test"], "n_test_scenes": int(len(set(te.scene.tolist())))}
+                       "n_test": counts["test"], "n_test_scenes": len(set(te.scene.tolist()))}
                 if min(counts["train"] + counts["test"]) < min_segments:
                     out.append({**row, "score": None, "ci_low": None, "ci_high": None, "beats_chance": False,
                                 "status": f"not scored: fewer than {min_segments} target-blind segments of a class"})

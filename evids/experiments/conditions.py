@@ -11,7 +11,15 @@ import torch
 from evids.experiments.pipeline import Models, Outputs, gmu_logit
 from evids.fusion import average, dempster_shafer, discounted_belief_fusion, yager
 from evids.gating import GateParams, simulate_gate, subset_fusion_table
-from evids.metrics import accuracy, brier, ece, entropy_from_log_probs, macro_f1, nll, uauc
+from evids.metrics import (
+    accuracy,
+    brier,
+    ece,
+    entropy_from_log_probs,
+    macro_f1,
+    nll,
+    uauc,
+)
 from evids.models.backbones import MODALITIES
 
 

@@ -7,7 +7,6 @@ specs and noise seeds), fusion and gate settings, sweep, conflict study and boot
 """
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 from typing import Any, Literal
 
@@ -33,7 +32,7 @@ class DatasetConfig(_Model):
                                   description="render video at this size and resize to video_px (None: video_px)")
 
     @model_validator(mode="after")
-    def _one_source(self) -> "DatasetConfig":
+    def _one_source(self) -> DatasetConfig:
         if (self.generate is None) == (self.path is None):
             raise ValueError("give exactly one of dataset.generate (a generation config) or dataset.path (a folder)")
         return self
@@ -52,7 +51,7 @@ class SplitConfig(_Model):
     test_fraction: float = Field(default=0.3, gt=0.0, lt=1.0)
 
     @model_validator(mode="after")
-    def _fractions(self) -> "SplitConfig":
+    def _fractions(self) -> SplitConfig:
         if self.val_fraction + self.test_fraction >= 1.0:
             raise ValueError("val_fraction + test_fraction must be < 1")
         return self
@@ -88,7 +87,7 @@ class NoiseEntry(_Model):
     params: dict[str, Any] = Field(default_factory=dict)
 
     @model_validator(mode="after")
-    def _known(self) -> "NoiseEntry":
+    def _known(self) -> NoiseEntry:
         import degradations
 
         if self.name not in degradations.REGISTRY:
@@ -143,7 +142,7 @@ class SwapProgram(_Model):
     strength: float = Field(default=1.0, gt=0.0, le=1.0, description="1 strongly wrong, < 1 weakly wrong")
 
     @model_validator(mode="after")
-    def _known(self) -> "SwapProgram":
+    def _known(self) -> SwapProgram:
         from degradations.schedule import SWAP_PROGRAMS
 
         if self.name not in SWAP_PROGRAMS:

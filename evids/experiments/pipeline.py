@@ -51,7 +51,7 @@ class Outputs:
     alpha: np.ndarray
     emb: np.ndarray
 
-    def replace(self, m: int, other: "Outputs") -> "Outputs":
+    def replace(self, m: int, other: Outputs) -> Outputs:
         logit, alpha, emb = self.logit.copy(), self.alpha.copy(), self.emb.copy()
         logit[m], alpha[m], emb[m] = other.logit[m], other.alpha[m], other.emb[m]
         return Outputs(logit, alpha, emb)

@@ -23,7 +23,13 @@ from evids.experiments.conditions import (
     predict_condition,
 )
 from evids.experiments.config import ExperimentConfig, load_experiment_config
-from evids.experiments.data import Prepared, clip_ids_of, labels_of, prepare, scene_ids_of, stack
+from evids.experiments.data import (
+    Prepared,
+    clip_ids_of,
+    labels_of,
+    prepare,
+    scene_ids_of,
+)
 from evids.experiments.noise import (
     conflict_clip,
     degrade_clip,
@@ -40,7 +46,7 @@ from evids.experiments.pipeline import (
     train_all,
 )
 from evids.gating import GateParams, HysteresisGate, sweep_gates
-from evids.metrics import paired_bootstrap, paired_permutation_test, uauc
+from evids.metrics import paired_bootstrap, paired_permutation_test
 from evids.models.backbones import MODALITIES
 from evids.runfolder import mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
@@ -252,7 +258,7 @@ def compare(ctx: Context, name: str, correct_a: np.ndarray, correct_b: np.ndarra
 
     bc = ctx.cfg.bootstrap
     n_cl = len(set(clusters.tolist())) if len(clusters) else 0
-    row = {"comparison": name, "n_segments": int(len(clusters)), "n_clusters": n_cl, "cluster_unit": "scene"}
+    row = {"comparison": name, "n_segments": len(clusters), "n_clusters": n_cl, "cluster_unit": "scene"}
     if len(clusters) == 0 or n_cl < 2:
         return {**row, "delta_accuracy": None, "ci_low": None, "ci_high": None, "p_value": None,
                 "p_permutation": None, "mde": None, "verdict": "not enough clusters"}
@@ -336,14 +342,15 @@ def stage_evaluate(ctx: Context) -> dict:
             correct[c.key].append(pred.probs.argmax(1) == y)
             if seed == cfg.protocol.noise_seeds[0] and run == 0:
                 preds0[c.key] = pred
-        ctx.drop_inputs()
+        if run == ctx.runs[-1]:
+            ctx.drop_inputs()
     rows = []
     for c in conds:
         agg = _aggregate([{k: v for k, v in r.items() if k not in ("run", "noise_seed")} for r in per[c.key]])
         accs = np.array([r["accuracy"] for r in per[c.key]]).reshape(-1)
         by_run = [float(np.mean([r["accuracy"] for r in per[c.key] if r["run"] == k])) for k in ctx.runs]
-        rows.append({"key": c.key, "label": c.label, "variant": c.variant, "n_segments": int(len(y)),
-                     "n_clips": int(len(set(cid))), "n_scenes": int(len(set(scn))), "n_runs": len(ctx.runs),
+        rows.append({"key": c.key, "label": c.label, "variant": c.variant, "n_segments": len(y),
+                     "n_clips": len(set(cid)), "n_scenes": len(set(scn)), "n_runs": len(ctx.runs),
                      "n_seeds": len(cfg.protocol.noise_seeds), "n_evaluations": int(accs.size),
                      "accuracy_std_training": float(np.std(by_run)), **agg})
     mean_correct = {k: np.mean(v, axis=0) for k, v in correct.items()}
@@ -483,13 +490,16 @@ def _swap_program(ctx: Context, prog) -> dict:
     T, y, cid, scn = np.concatenate(targ), np.concatenate(y), np.concatenate(cid), np.concatenate(scn)
     x = (np.concatenate([p.mfcc for p in parts]), np.concatenate([p.video for p in parts]),
          np.concatenate([p.rf for p in parts]))
-    clean_x = tuple(stack(ctx.prep.clips, [i for i, _ in items], k) for k in ("mfcc", "video", "rf"))
+    offsets = np.cumsum([0] + [ctx.prep.clips[i].n_segments for i in ctx.test])
+    pos = {i: k for k, i in enumerate(ctx.test)}
+    rows = np.concatenate([np.arange(offsets[pos[i]], offsets[pos[i] + 1]) for i, _ in items])
     m_idx = [MODALITIES.index(m) for m in mods]
     flips, conf, C, FB, acc, dis = [], [], [], [], {}, []
     dis_acc = {"ds": [], "average": []}
     where = []
     for run in ctx.runs:
-        clean = encode(ctx.models[run], *clean_x)
+        full = ctx.outputs("clean", 0, run=run)
+        clean = Outputs(full.logit[:, rows], full.alpha[:, rows], full.emb[:, rows])
         out = clean
         swapped = encode(ctx.models[run], *x, only=tuple(mods))
         for m in m_idx:
@@ -531,7 +541,7 @@ def _swap_program(ctx: Context, prog) -> dict:
         v = [a for a in v if a is not None]
         return float(np.mean(v)) if v else None
 
-    return {**base, "n_clips": len(items), "n_targeted": int(T.sum()), "n_segments": int(len(T)),
+    return {**base, "n_clips": len(items), "n_targeted": int(T.sum()), "n_segments": len(T),
             "flip_rate": flip, "flip_rate_std_training": float(np.std(flips)),
             "wrong_class_probability": float(np.mean(conf)), "status": status,
             "ds_conflict": {"mean": float(Cs.mean()) if Cs.size else None,

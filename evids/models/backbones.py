@@ -126,7 +126,7 @@ class UnimodalModel(nn.Module):
         self.modality = modality
         self.head_kind = head
         self.backbone = backbone
-        d = int(getattr(backbone, "out_features"))
+        d = int(backbone.out_features)
         self.head = BaselineHead(d, 1, "sigmoid") if head == "sigmoid" else EvidentialHead(d, 2)
 
     def forward(self, x: Tensor) -> tuple[Tensor, Tensor]:

@@ -285,7 +285,7 @@ def _conflict_html(conf: dict) -> str:
             "drone (truth). Vote flips: share of targeted segments where the compromised sensor's EDL vote changes "
             "vs the same clip without the program, mean &plusmn; std over training runs; P(wrong): its mean "
             "probability of the wrong class there. Rule accuracies are on the targeted segments. 'bites' = flips "
-            f"&ge; 50%; 'inert' = flips &lt; 5%.</p>" + _table(hdr, rows, "conflict")
+            "&ge; 50%; 'inert' = flips &lt; 5%.</p>" + _table(hdr, rows, "conflict")
             + _img(_png(fig), "DS conflict C per program")
             + ("<h3>Where DS and averaging decide differently (first training run)</h3>"
                + _table(["program", "clip", "segment", "truth", "DS", "average", "alpha (Drone, Background) per sensor"],

@@ -18,8 +18,9 @@ import hashlib
 import json
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable, Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -78,7 +79,7 @@ class ClipSpec(_Model):
     ambience: Ambience = Field(default_factory=Ambience)
 
     @model_validator(mode="after")
-    def _group_name(self) -> "ClipSpec":
+    def _group_name(self) -> ClipSpec:
         name = self.group or (self.scenario if isinstance(self.scenario, str) else None)
         if name is not None and (not name or "/" in name or name.startswith(".")):
             raise ValueError(f"group must be a plain folder name, got {name!r}")
@@ -133,7 +134,7 @@ class SceneDistribution(_Model):
     bluetooth_rx_dbm: Span = (-84.0, -64.0)
 
     @model_validator(mode="after")
-    def _splits(self) -> "SceneDistribution":
+    def _splits(self) -> SceneDistribution:
         if self.n_test_scenes + self.n_val_scenes >= self.n_scenes:
             raise ValueError(f"n_test_scenes + n_val_scenes ({self.n_test_scenes} + {self.n_val_scenes}) must leave "
                              f"at least one of the {self.n_scenes} scenes for training (splits are scene-disjoint)")
@@ -163,7 +164,7 @@ class TridentConfig(_Model):
     scenes: SceneDistribution | None = None
 
     @model_validator(mode="after")
-    def _segments(self) -> "TridentConfig":
+    def _segments(self) -> TridentConfig:
         if not self.clips and self.scenes is None:
             raise ValueError("give clips (listed scenarios) or scenes (a scene distribution), or both")
         if self.frames_per_segment % self.video_render_stride:
