@@ -22,7 +22,7 @@ def trained():
     train, test = clips[:12], clips[12:]
     y = np.concatenate([np.full(c.n_segments, c.label) for c in train])
     models = {}
-    cfg = TrainConfig(epochs=3, patience=3, batch_size=16, kl_anneal_epochs=1.0)
+    cfg = TrainConfig(epochs=5, patience=5, batch_size=8, kl_anneal_epochs=1.0)
     for m in ("audio", "video", "rf"):
         x = np.concatenate([getattr(c, KEY[m]) for c in train])
         model = build_model(m, "evidential", seed=5, video_frames=2)
