@@ -94,8 +94,8 @@ def _verdict(x: dict | None, a: str, b: str) -> str:
     if v == "B better":
         return f"{b} beats {a}"
     if v.startswith("no difference"):
-        return f"no difference between {a} and {b} ({v[len('no difference '):]})"
-    return f"{a} vs {b}: {v}"
+        return f"no difference between {a} and {b} {html.escape(v[len('no difference '):])}"
+    return f"{a} vs {b}: {html.escape(v)}"
 
 
 def _stat(x: dict | None) -> str:

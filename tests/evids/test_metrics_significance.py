@@ -29,7 +29,9 @@ def test_exact_sign_flip_p_value_by_hand():
 
 
 def test_mde_formula():
-    assert minimum_detectable_difference(0.2, 33) == pytest.approx((1.959964 + 0.841621) * 0.2 / np.sqrt(33), rel=1e-5)
+    # t quantiles, 32 df: t_0.975 = 2.036933, t_0.8 = 0.852998
+    assert minimum_detectable_difference(0.2, 33) == pytest.approx((2.036933 + 0.852998) * 0.2 / np.sqrt(33), rel=1e-5)
+    assert minimum_detectable_difference(0.2, 10000) == pytest.approx(2.8016 * 0.2 / 100, rel=1e-3)
     assert np.isnan(minimum_detectable_difference(0.2, 1))
 
 
