@@ -51,6 +51,12 @@ install_python() {
     echo "[setup] installing the package and dependencies into .venv (first run takes a few minutes)"
     .venv/bin/python -m pip install -q --upgrade pip >/dev/null
     .venv/bin/python -m pip install -q -e ".[${extras}]"
+    if [[ ",$extras," == *",dev,"* || ",$extras," == *",tracking,"* ]]; then
+      # trackeval 1.3.0 (HOTA/CLEAR/Identity on NumPy 2) declares the GUI build opencv-python, which would
+      # overwrite the headless cv2 we pin; its metrics import no cv2, so install it without dependencies
+      # (its other requirements, pycocotools and tabulate, come with the extras).
+      .venv/bin/python -m pip install -q --no-deps "trackeval==1.3.0"
+    fi
     rm -f .venv/.installed-*
     touch "$stamp"
   fi

@@ -51,8 +51,14 @@ def verify_hashes(folder: Path) -> list[str]:
     if not listed_file.is_file():
         return [HASH_FILE]
     listed = {}
-    for line in listed_file.read_text().splitlines():
-        digest, rel = line.split("  ", 1)
+    try:
+        lines = listed_file.read_text().splitlines()
+    except UnicodeDecodeError:
+        return [HASH_FILE]
+    for number, line in enumerate(lines, start=1):
+        digest, sep, rel = line.partition("  ")
+        if not sep or len(digest) != 64 or any(c not in "0123456789abcdef" for c in digest) or not rel:
+            return [f"{HASH_FILE} (line {number} is not '<sha256>  <path>')"]
         listed[rel] = digest
     actual = hash_tree(folder)
     return sorted(rel for rel in set(listed) | set(actual) if listed.get(rel) != actual.get(rel))

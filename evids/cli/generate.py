@@ -81,28 +81,50 @@ def generate(
 
 
 def export(
-    dataset: Path = typer.Argument(..., help="A native dataset folder (made by `evids generate`)."),
-    fmt: str = typer.Option(..., "--format", help="antiuav, antiuav_rgbt, mot or coco (comma-separated for several)."),
+    dataset: Path = typer.Argument(..., help="A native dataset folder (made by `evids generate`), or a TRIDENT clip "
+                                   "dataset (made by `evids generate --format trident`)."),
+    fmt: str = typer.Option(..., "--format", help="native datasets: antiuav, antiuav_rgbt, antiuav2021, mot, coco, "
+                            "webdataset; TRIDENT clip datasets: trident (the public layout), webdataset "
+                            "(comma-separated for several)."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default DATASET/<format>); one "
                                        "format: written here; several: OUT/<format>."),
     annotate_every: int = typer.Option(1, "--annotate-every", min=1, help="mot: gt rows on frames 1, 1+k, ... only "
                                        "(MM-UAV's test split uses 20)."),
     distractors: Optional[bool] = typer.Option(None, "--distractors/--no-distractors", help="Include birds/aircraft "
                                                "(default: no for mot, yes for coco as flagged categories)."),
+    distractors_as: str = typer.Option("class", "--distractors-as", help="mot with --distractors: 'class' (rows of "
+                                       "MM-UAV class 1 not_drone in gt.txt) or 'file' (a separate distractors.txt)."),
+    coco_naming: str = typer.Option("evids", "--coco-naming", help="coco: 'evids' (<split>_ir.json, file_name "
+                                    "relative to the split folder) or 'mmuav' (<split>-ir.json, from the root)."),
+    mfcc: str = typer.Option("evids", "--mfcc", help="trident/webdataset of clips: MFCC pipeline recorded for readers, "
+                             "'evids' (correct) or 'trident' (the public code's, bit for bit)."),
+    test_fraction: float = typer.Option(0.2, "--test-fraction", min=0.0, max=0.99, help="trident: share of clips "
+                                        "per class in Test/ (the rest in Train/)."),
+    shard_mb: float = typer.Option(500.0, "--shard-mb", min=0.001, help="webdataset: start a new shard past this size."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
 ) -> None:
-    """Export a native dataset to benchmark layouts (Anti-UAV, MM-UAV, COCO-video).
+    """Export a dataset to benchmark layouts (Anti-UAV, MM-UAV, COCO-video, TRIDENT, WebDataset); docs/FORMATS.md.
 
     Example: evids export out/mixed --format mot --out out/mixed_mmuav --annotate-every 20
     """
-    from simulator.dataset.generate import export_dataset
+    from simulator.dataset.generate import EXPORT_FORMATS, TRIDENT_EXPORT_FORMATS, export_dataset
 
-    formats = [f for f in _formats(fmt) if f != "native"]
-    if not formats:
-        raise UserInputError("--format: give at least one of antiuav, antiuav_rgbt, mot, coco")
-    for f in formats:
+    formats = [f.strip() for f in fmt.split(",") if f.strip() and f.strip() != "native"]
+    valid = set(EXPORT_FORMATS) | set(TRIDENT_EXPORT_FORMATS)
+    bad = [f for f in formats if f not in valid]
+    if bad or not formats:
+        raise UserInputError(f"--format: unknown format(s) {bad or [fmt]}; valid: {', '.join(sorted(valid))}")
+    if distractors_as not in ("class", "file"):
+        raise UserInputError(f"--distractors-as must be 'class' or 'file', got {distractors_as!r}")
+    mode: bool | str | None = distractors
+    for f in dict.fromkeys(formats):
+        if f == "mot":
+            mode = distractors_as if distractors else "none"
+        elif f == "coco":
+            mode = distractors
         target = (out if len(formats) == 1 else out / f) if out is not None else dataset / f
-        path = export_dataset(dataset, f, target, annotate_every=annotate_every, distractors=distractors,
+        path = export_dataset(dataset, f, target, annotate_every=annotate_every, distractors=mode,
+                              coco_naming=coco_naming, mfcc=mfcc, test_fraction=test_fraction, shard_mb=shard_mb,
                               progress=not quiet)
         typer.echo(f"{f}: {path}")
 

@@ -96,7 +96,7 @@ def load_clips(root: Path, progress: bool = True) -> list[ClipArrays]:
     """Every clip under a TRIDENT-layout root, through the shared loader."""
     import soundfile
 
-    from simulator.formats.trident import TridentDataset
+    from simulator.formats.trident import TridentDataset, load_iq
 
     root = Path(root)
     try:
@@ -116,10 +116,8 @@ def load_clips(root: Path, progress: bool = True) -> list[ClipArrays]:
         if not segs:
             continue
         audio, rate = soundfile.read(str(clip.audio), dtype="float32", always_2d=True)
-        iq = None
-        iq_path = root / "rf_iq" / clip.label / clip.scenario / f"{clip.number}.npy"
-        if iq_path.is_file():
-            iq = np.load(iq_path)[: len(segs)]
+        iq = load_iq(clip)             # generated rf_iq/<n>.npy or the public export's RF_IQ SigMF
+        iq = None if iq is None else iq[: len(segs)]
         obs = {}
         if segs[0].observability is not None:
             obs = {m: np.array([s.observability[m] for s in segs]) for m in ("audio", "video", "rf")}

@@ -42,7 +42,7 @@ from evids.metrics.significance import (
     null_rejection_rate,
     paired_permutation_test,
 )
-from evids.metrics.tracking import hota
+from evids.metrics.tracking import hota, track_scores
 
 __all__ = [
     "BootstrapResult",
@@ -74,6 +74,7 @@ __all__ = [
     "paired_permutation_test",
     "plot_reliability",
     "reliability_diagram",
+    "track_scores",
     "state_accuracy",
     "uauc",
 ]

@@ -4,7 +4,7 @@ Layout (docs/DATASETS.md)::
 
     DIR/manifest.json             resolved config, seed, versions, per-sequence seed/split/hash
     DIR/sequences/seq000001/      native layout (docs/NATIVE_FORMAT.md), renamed into place whole
-    DIR/<format>/                 optional exports (antiuav, antiuav_rgbt, mot, coco)
+    DIR/<format>/                 optional exports (antiuav, antiuav_rgbt, antiuav2021, mot, coco, webdataset)
 
 The manifest is written first with ``"complete": false`` and no hashes (so a resumed run can check
 it is the same dataset), and rewritten at the end with the hashes; it holds no timestamps, so an
@@ -36,7 +36,8 @@ from simulator.files import HASH_FILE, verify_hashes
 MANIFEST = "manifest.json"
 SEQUENCES_DIR = "sequences"
 DATASET_FORMAT = "evids-native-dataset"
-EXPORT_FORMATS = ("antiuav", "antiuav_rgbt", "mot", "coco")
+EXPORT_FORMATS = ("antiuav", "antiuav_rgbt", "antiuav2021", "mot", "coco", "webdataset")
+TRIDENT_EXPORT_FORMATS = ("trident", "webdataset")     # formats a TRIDENT clip dataset exports to
 EXECUTORS = ("local", "ray")
 
 
@@ -116,6 +117,8 @@ def load_manifest(dataset_dir: Path) -> dict[str, Any]:
         manifest = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise UserInputError(f"{path}: not valid JSON: {exc}") from None
+    if not isinstance(manifest, dict):
+        raise UserInputError(f"{path}: expected a JSON object, got {type(manifest).__name__}")
     if manifest.get("format") != DATASET_FORMAT:
         raise UserInputError(f"{path}: format is {manifest.get('format')!r}, expected {DATASET_FORMAT!r}")
     return manifest
@@ -398,7 +401,7 @@ def verify_dataset(dataset_dir: str | Path, *, progress: bool = False) -> Verify
     root = Path(dataset_dir)
     manifest = load_manifest(root)
     report = VerifyReport(incomplete=not manifest.get("complete", False))
-    entries = manifest["sequences"]
+    entries = manifest_entries(manifest, root / MANIFEST)
     if progress:
         from rich.progress import track
 
@@ -417,51 +420,121 @@ def verify_dataset(dataset_dir: str | Path, *, progress: bool = False) -> Verify
     return report
 
 
+def manifest_entries(manifest: dict[str, Any], path: Path) -> list[dict[str, Any]]:
+    """The manifest's ``sequences`` list, each entry checked to name a plain sequence folder."""
+    entries = manifest.get("sequences")
+    if not isinstance(entries, list):
+        raise UserInputError(f"{path}: key 'sequences' is missing or not a list (not a complete evids manifest)")
+    for k, e in enumerate(entries):
+        name = e.get("name") if isinstance(e, dict) else None
+        if not isinstance(name, str) or not name or name in (".", "..") or "/" in name or "\\" in name:
+            raise UserInputError(f"{path}: sequences[{k}].name must be a plain folder name, got {name!r}")
+        split = e.get("split", "train")
+        if not isinstance(split, str) or not split or split in (".", "..") or "/" in split or "\\" in split:
+            raise UserInputError(f"{path}: sequences[{k}].split must be a plain folder name, got {split!r}")
+    return entries
+
+
 def dataset_sequences(dataset_dir: str | Path) -> list[dict[str, Any]]:
     """Manifest entries of a complete dataset, each with its ``path``."""
     root = Path(dataset_dir)
     manifest = load_manifest(root)
     if not manifest.get("complete"):
         raise UserInputError(f"{root}: the dataset is incomplete; re-run `evids generate` with the same arguments")
-    return [{**e, "path": root / SEQUENCES_DIR / e["name"]} for e in manifest["sequences"]]
+    return [{**e, "path": root / SEQUENCES_DIR / e["name"]} for e in manifest_entries(manifest, root / MANIFEST)]
 
 
 def export_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, annotate_every: int = 1,
-                   distractors: bool | None = None, progress: bool = True) -> Path:
-    """Export a complete native dataset to ``fmt`` (antiuav, antiuav_rgbt, mot, coco) under ``out_dir``;
-    written to a temporary sibling and renamed, so a failure leaves ``out_dir`` as it was.
+                   distractors: bool | str | None = None, coco_naming: str = "evids", mfcc: str = "evids",
+                   test_fraction: float = 0.2, shard_mb: float = 500.0, progress: bool = True) -> Path:
+    """Export a complete dataset to ``fmt`` under ``out_dir`` (docs/FORMATS.md); written to a temporary
+    sibling and renamed, so a failure leaves ``out_dir`` as it was.
 
-    ``distractors`` (birds, aircraft): default off for mot (exactly MM-UAV), on for coco (flagged
-    categories); Anti-UAV is single-object (the first drone) either way."""
+    Native datasets export to antiuav, antiuav_rgbt, antiuav2021, mot (MM-UAV dataset layout plus the
+    MOTChallenge evaluation layout under ``gt/``), coco and webdataset; TRIDENT clip datasets (made by
+    ``evids generate --format trident``) to trident (the public layout) and webdataset.
+
+    ``distractors`` (birds, aircraft): mot default ``none`` (exactly MM-UAV); True or ``class`` = rows
+    of class 1 ``not_drone``, ``file`` = a separate distractors.txt; coco default on (flagged
+    categories); Anti-UAV is single-object (the first drone) either way. ``coco_naming``: ``evids`` or
+    ``mmuav`` (``train-ir.json``, file_name from the dataset root). ``mfcc`` (trident): the MFCC
+    pipeline recorded for readers, ``evids`` (correct) or ``trident`` (the public code's)."""
     from simulator.files import atomic_folder
 
-    if fmt not in EXPORT_FORMATS:
-        raise UserInputError(f"--format must be one of {', '.join(EXPORT_FORMATS)}, got {fmt!r}")
     if annotate_every < 1:
         raise UserInputError(f"--annotate-every must be >= 1, got {annotate_every}")
+    if _is_trident_dataset(dataset_dir):
+        return _export_trident_dataset(dataset_dir, fmt, out_dir, mfcc=mfcc, test_fraction=test_fraction,
+                                       shard_mb=shard_mb, progress=progress)
+    if fmt not in EXPORT_FORMATS:
+        raise UserInputError(f"--format must be one of {', '.join(EXPORT_FORMATS)}, got {fmt!r}")
+    from simulator.formats.coco import NAMINGS
+    from simulator.formats.mot import DISTRACTOR_MODES, distractor_mode
+
+    if coco_naming not in NAMINGS:
+        raise UserInputError(f"--coco-naming must be one of {', '.join(NAMINGS)}, got {coco_naming!r}")
+    if isinstance(distractors, str) and distractors not in DISTRACTOR_MODES:
+        raise UserInputError(f"--distractors must be one of {', '.join(DISTRACTOR_MODES)}, got {distractors!r}")
     entries = dataset_sequences(dataset_dir)
     out = Path(out_dir)
     with atomic_folder(out) as tmp:
-        if fmt == "antiuav":
-            from simulator.formats.antiuav import export_antiuav
+        if fmt in ("antiuav", "antiuav_rgbt", "antiuav2021"):
+            from simulator.formats import antiuav
 
-            for e in _track(entries, progress, "export antiuav"):
-                export_antiuav(e["path"], tmp / e["split"], e["name"])
-        elif fmt == "antiuav_rgbt":
-            from simulator.formats.antiuav import export_antiuav_rgbt
-
-            for e in _track(entries, progress, "export antiuav_rgbt"):
-                export_antiuav_rgbt(e["path"], tmp / e["split"], e["name"])
+            writer = {"antiuav": antiuav.export_antiuav, "antiuav_rgbt": antiuav.export_antiuav_rgbt,
+                      "antiuav2021": antiuav.export_antiuav2021}[fmt]
+            for e in _track(entries, progress, f"export {fmt}"):
+                writer(e["path"], tmp / e["split"], e["name"])
         elif fmt == "mot":
-            from simulator.formats.mot import export_mmuav
+            from simulator.formats.mot import export_mmuav, write_eval_layout
 
+            splits: dict[str, list[str]] = {}
             for e in _track(entries, progress, "export mot"):
-                export_mmuav(e["path"], tmp / e["split"], mmuav_number(e["index"]), annotate_every=annotate_every,
-                             distractors=bool(distractors))
-        else:
+                name = mmuav_number(e["index"])
+                export_mmuav(e["path"], tmp / e["split"], name, annotate_every=annotate_every,
+                             distractors=distractor_mode(distractors))
+                splits.setdefault(e["split"], []).append(name)
+            write_eval_layout(tmp, tmp, splits)
+        elif fmt == "coco":
             from simulator.formats.coco import export_coco
 
-            export_coco(entries, tmp, distractors=distractors is not False, progress=progress)
+            export_coco(entries, tmp, distractors=distractors not in (False, "none"), progress=progress,
+                        naming=coco_naming)
+        else:
+            from simulator.formats.webdataset import export_native_webdataset
+
+            export_native_webdataset(entries, tmp, shard_bytes=int(shard_mb * 1e6), progress=progress)
+    return out
+
+
+def _is_trident_dataset(dataset_dir: str | Path) -> bool:
+    path = Path(dataset_dir) / MANIFEST
+    if not path.is_file():
+        return False
+    try:
+        return json.loads(path.read_text()).get("format") == "trident"
+    except (ValueError, UnicodeDecodeError, AttributeError):
+        return False
+
+
+def _export_trident_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, mfcc: str,
+                            test_fraction: float, shard_mb: float, progress: bool) -> Path:
+    """TRIDENT clip dataset -> the public TRIDENT layout or WebDataset shards of segments."""
+    from simulator.files import atomic_folder
+
+    if fmt not in TRIDENT_EXPORT_FORMATS:
+        raise UserInputError(f"{dataset_dir}: a TRIDENT clip dataset exports to {', '.join(TRIDENT_EXPORT_FORMATS)} "
+                             f"only, got {fmt!r}")
+    out = Path(out_dir)
+    with atomic_folder(out) as tmp:
+        if fmt == "trident":
+            from simulator.formats.trident import export_public
+
+            export_public(dataset_dir, tmp, mfcc=mfcc, test_fraction=test_fraction, progress=progress)
+        else:
+            from simulator.formats.webdataset import export_trident_webdataset
+
+            export_trident_webdataset(dataset_dir, tmp, shard_bytes=int(shard_mb * 1e6), mfcc=mfcc, progress=progress)
     return out
 
 

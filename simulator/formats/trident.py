@@ -1,16 +1,31 @@
-"""Loader for TRIDENT-layout tri-modal data: generated folders and the public TRIDENT release.
+"""TRIDENT tri-modal clips: writer, reader and spec (docs/FORMATS.md, "TRIDENT").
 
-Layout: ``<root>/{audio,video,rf}/{Drone,Background}/<scenario>/...`` with, per clip number n,
-``audio/.../<n>.wav``, ``video/.../<n>_frame_<i>.jpg`` (28 fps) and one RF spectrogram image per
-0.25 s segment whose name starts with ``<n>_`` and ends with the segment index (``<n>_rf_<s>.png``
-here). Clips are matched across modalities by (label, scenario folder, n). Generated folders also
-carry ``labels/.../<n>.json`` with per-segment observability ground truth, returned when present.
+Two layouts, both read by :class:`TridentDataset` / :func:`discover_clips`:
 
-A clip yields min(audio segments, video frames // 7, RF images) segments, each as a
-:class:`TridentSegment`: MFCC (1, 40, 40) float32 computed from the WAV exactly as the generator
-does (:func:`mfcc_segments`), video (7, 112, 112, 3) uint8 RGB, RF spectrogram
-(112, 112) float32 in [0, 1] (or (112, 112, 3) for colour images), label (Drone -> 0, as the
-TRIDENT reference code), clip id and segment index.
+* **generated** (what ``evids generate --format trident`` writes): ``<root>/{audio,video,rf}/
+  {Drone,Background}/<scenario>/`` with ``<n>.wav``, ``<n>_frame_<i>.jpg`` (0-based, 28 fps),
+  ``<n>_rf_<s>.png`` (0-based, one per 0.25 s segment), plus ``rf_iq/.../<n>.npy`` (+ its SigMF
+  ``<n>.sigmf-meta``), ``labels/.../<n>.json`` (per-segment observability) and ``manifest.json``;
+* **public** (the TRIDENT release, and :func:`export_public`): ``<root>/Audio/<Split>/<Label>/<scenario>/<n>.wav``,
+  ``Video/<Split>/<Label>/<scenario>/{Images_Extracted|Images}/<n>_frame_<i>.jpg`` (i = 1..280),
+  ``RF_Spectrograms/<Split>/<Label>/<scenario>/{Images_Spectrograms|Images}/<n>_frame_<j>.jpg``
+  (j = 1..40); ``<Split>`` is ``Train`` (``Images_Extracted``, ``Images_Spectrograms``) or ``Test``
+  (``Images``). Our export adds ``Labels/``, ``RF_IQ/`` (SigMF) and ``manifest.json``, which the
+  public code ignores.
+
+A clip yields S segments of 0.25 s: S from its labels JSON, else from the manifest's clip
+duration, else 40 in the public layout (the public code's fixed 10 s), else the WAV's length. Each
+segment is a :class:`TridentSegment`: MFCC (1, 40, 40) float32, video (7, 112, 112, 3) uint8 RGB,
+RF spectrogram (112, 112) float32 in [0, 1] (or (112, 112, 3) for colour images), label (Drone -> 0,
+as the TRIDENT code), clip id and segment index.
+
+MFCC pipelines (``mfcc=``): ``evids`` (default, physically correct: :func:`mfcc_segments`) or
+``trident`` (the public code's, bit for bit: :func:`mfcc_trident`). ``None`` takes the one recorded
+in the dataset's manifest (``evids`` when there is none).
+
+Reading validates each clip: the WAV opens and covers S segments (a truncated WAV is an error),
+frame and RF indices are consecutive from their first (0 or 1) with no gap, and there are at least
+7 S frames and S RF images. ``strict=False`` skips a bad clip and records it in ``skipped``.
 """
 from __future__ import annotations
 
@@ -23,6 +38,7 @@ from typing import Any, Iterator, Literal, Protocol
 import numpy as np
 
 from simulator.physics.acoustics import AUDIO_SAMPLE_RATE_HZ, write_wav
+from simulator.formats.validation import FormatError, Skipped, SkippedRowsWarning, read_json
 from simulator.physics.rf import RFCapture, RFConfig
 
 SEGMENT_S = 0.25
@@ -38,7 +54,6 @@ LABELS = ("Drone", "Background")      # TRIDENT reference code maps Drone -> 0
 IMAGE_PX = VIDEO_PX
 _VIDEO_RE = re.compile(r"^(\d+)_frame_(\d+)\.jpe?g$", re.IGNORECASE)
 _RF_RE = re.compile(r"^(\d+)_(?:.*?)(\d+)\.(?:png|jpe?g)$", re.IGNORECASE)
-_AUDIO_RE = re.compile(r"^(\d+)(?:_.*)?\.wav$", re.IGNORECASE)
 
 
 
@@ -73,11 +88,35 @@ def mfcc_segments(audio: np.ndarray, sample_rate_hz: float, n_segments: int | No
     return mfcc[:, None].astype(np.float32)
 
 
+# The public TRIDENT code's feature pipeline (dataset/get_dataset.py, DroneFusionDataset.__getitem__)
+TRIDENT_SAMPLE_RATE_HZ = 44100
+TRIDENT_DECIMATION = 3
+TRIDENT_N_FFT = 2048
+TRIDENT_HOP = 512
+MFCC_PIPELINES = ("evids", "trident")
+
+
+def mfcc_trident(wav_path: str | Path, n_segments: int) -> np.ndarray:
+    """(S, 1, 40, 40) float32 MFCCs exactly as the public TRIDENT code computes them.
+
+    Per segment k: ``librosa.load(path, sr=44100, offset=0.25 k, duration=0.25)``, then
+    ``waveform[::3]`` with sr still 44100 (so mel bands are shifted by 3x and only 8 frames are real),
+    ``librosa.feature.mfcc(n_mfcc=40, n_fft=2048, hop_length=512)``, zero-padded to 40 columns.
+    Kept for compatibility with models trained on the public code; :func:`mfcc_segments` is correct."""
+    import librosa
+
+    out = np.zeros((n_segments, 1, MFCC_N_MFCC, MFCC_FRAMES), dtype=np.float32)
+    for k in range(n_segments):
+        waveform, sr = librosa.load(str(wav_path), sr=TRIDENT_SAMPLE_RATE_HZ, offset=k * SEGMENT_S, duration=SEGMENT_S)
+        waveform = np.asfortranarray(waveform[::TRIDENT_DECIMATION])
+        mfcc = librosa.feature.mfcc(y=waveform, sr=sr, n_mfcc=MFCC_N_MFCC, n_fft=TRIDENT_N_FFT, hop_length=TRIDENT_HOP)
+        mfcc = np.pad(mfcc, ((0, 0), (0, max(0, MFCC_FRAMES - mfcc.shape[1]))), mode="constant")
+        out[k, 0] = mfcc[:, :MFCC_FRAMES].astype(np.float32)
+    return out
+
+
 
 # --------------------------------------------------------------------------------------------
-# One clip in memory
-# --------------------------------------------------------------------------------------------
-
 # One clip in memory
 # --------------------------------------------------------------------------------------------
 
@@ -135,8 +174,6 @@ class ClipWriteSettings(Protocol):
 # Writing the TRIDENT layout
 # --------------------------------------------------------------------------------------------
 
-# --------------------------------------------------------------------------------------------
-
 def _encode_image(image: np.ndarray, ext: Literal[".jpg", ".png"], jpeg_quality: int = 95) -> bytes:
     import cv2
 
@@ -168,9 +205,15 @@ def write_clip(root: Path, group: str, number: int, clip: TridentClip, config: C
         path.write_bytes(_encode_image(image, ".png"))
         written.append(path)
     if config.save_iq:
+        from simulator.formats.sigmf import write_npy_meta
+
         path = dirs["rf_iq"] / f"{number}.npy"
         np.save(path, clip.rf.iq.astype(np.complex64))
         written.append(path)
+        written.append(write_npy_meta(path, sample_rate_hz=config.rf.sample_rate_hz,
+                                      center_frequency_hz=config.rf.center_frequency_hz,
+                                      capture_start_s=clip.rf.capture_start_s, label=label,
+                                      description=f"evids synthetic RF capture, clip {number} ({group})"))
     info = {"clip": number, "group": group, **(meta or {}), "segments": clip.truth.to_json(),
             "rf": {"sample_rate_hz": config.rf.sample_rate_hz, "center_frequency_hz": config.rf.center_frequency_hz,
                    "capture_samples": config.rf.capture_samples, "noise_dbm": round(config.rf.noise_dbm, 3),
@@ -181,9 +224,19 @@ def write_clip(root: Path, group: str, number: int, clip: TridentClip, config: C
     return written
 
 
+
 # --------------------------------------------------------------------------------------------
-# Reader
+# Reader (both layouts)
 # --------------------------------------------------------------------------------------------
+
+PUBLIC_ROOTS = {"audio": "Audio", "video": "Video", "rf": "RF_Spectrograms"}
+PUBLIC_SPLITS = ("Train", "Test")
+PUBLIC_SUBFOLDERS = {"Train": {"video": "Images_Extracted", "rf": "Images_Spectrograms"},
+                     "Test": {"video": "Images", "rf": "Images"}}
+PUBLIC_SEGMENTS = 40                  # the public loader's fixed duration=10 s / segment_length=0.25 s
+PUBLIC_EXTRAS = {"labels": "Labels", "rf_iq": "RF_IQ"}
+MANIFEST = "manifest.json"
+
 
 @dataclass
 class TridentSegment:
@@ -193,14 +246,14 @@ class TridentSegment:
     video: np.ndarray               # (7, 112, 112, 3) uint8 RGB
     rf: np.ndarray                  # (112, 112) float32 in [0, 1]
     label: int                      # 0 Drone, 1 Background
-    clip_id: str                    # "<Label>/<scenario>/<n>"
+    clip_id: str                    # "<Label>/<scenario>/<n>" ("<Split>/<Label>/<scenario>/<n>" in the public layout)
     segment_index: int
     observability: dict[str, bool] | None = None   # video/audio/rf ground truth (generated data only)
 
 
 @dataclass
 class ClipFiles:
-    """Paths of one clip across modalities."""
+    """Paths of one clip across modalities; ``segments`` = S, checked when the clip was discovered."""
 
     label: str
     scenario: str
@@ -209,21 +262,49 @@ class ClipFiles:
     frames: list[Path]              # sorted by frame index
     rf: list[Path]                  # sorted by segment index
     labels_json: Path | None
+    split: str | None = None        # "Train"/"Test" in the public layout
+    segments: int = 0
+    iq: Path | None = None
 
     @property
     def clip_id(self) -> str:
-        return f"{self.label}/{self.scenario}/{self.number}"
+        base = f"{self.label}/{self.scenario}/{self.number}"
+        return f"{self.split}/{base}" if self.split else base
 
     @property
     def n_segments(self) -> int:
-        return min(len(self.rf), len(self.frames) // FRAMES_PER_SEGMENT, _audio_segments(self.audio))
+        return self.segments
 
 
-def _audio_segments(path: Path) -> int:
-    import soundfile
+def is_public_layout(root: Path) -> bool:
+    return all((Path(root) / d).is_dir() for d in PUBLIC_ROOTS.values())
 
-    info = soundfile.info(str(path))
-    return int(info.frames // int(round(0.25 * info.samplerate)))
+
+def read_manifest(root: Path) -> dict[str, Any] | None:
+    path = Path(root) / MANIFEST
+    if not path.is_file():
+        return None
+    data = read_json(path)
+    if not isinstance(data, dict):
+        raise FormatError(path, "top level", "expected an object")
+    return data
+
+
+def manifest_segments(manifest: dict[str, Any] | None) -> int | None:
+    """Segments per clip recorded in a generated or exported manifest."""
+    if not manifest:
+        return None
+    if isinstance(manifest.get("segments_per_clip"), int):
+        return manifest["segments_per_clip"]
+    duration = (manifest.get("config") or {}).get("clip_duration_s")
+    return int(round(duration / SEGMENT_S)) if isinstance(duration, (int, float)) and duration > 0 else None
+
+
+def manifest_mfcc(manifest: dict[str, Any] | None) -> str:
+    """The MFCC pipeline a manifest records (``evids`` when none)."""
+    value = (manifest or {}).get("mfcc")
+    pipeline = value.get("pipeline", "evids") if isinstance(value, dict) else value or "evids"
+    return pipeline if pipeline in MFCC_PIPELINES else "evids"
 
 
 def _indexed(folder: Path, pattern: re.Pattern) -> dict[str, list[tuple[int, Path]]]:
@@ -233,32 +314,145 @@ def _indexed(folder: Path, pattern: re.Pattern) -> dict[str, list[tuple[int, Pat
             m = pattern.match(p.name)
             if m:
                 out.setdefault(m.group(1), []).append((int(m.group(2)), p))
-    return {k: [p for _, p in sorted(v)] for k, v in out.items()}
+    return {k: sorted(v) for k, v in out.items()}
 
 
-def discover_clips(root: str | Path) -> list[ClipFiles]:
-    """All clips present in all three modalities, sorted by clip id."""
-    root = Path(root)
-    for modality in ("audio", "video", "rf"):
-        if not (root / modality).is_dir():
-            raise ValueError(f"root: {str(root)!r} has no {modality}/ folder (expected the TRIDENT layout)")
-    clips = []
+def _audio_files(folder: Path) -> dict[str, Path]:
+    """WAVs by clip number (the first digit run of the name, as the public code takes it)."""
+    out = {}
+    for p in folder.iterdir() if folder.is_dir() else []:
+        if p.suffix.lower() == ".wav" and (m := re.search(r"\d+", p.stem)):
+            out[m.group(0)] = p
+    return out
+
+
+def _audio_segments(path: Path) -> int:
+    import soundfile
+
+    try:
+        info = soundfile.info(str(path))
+    except (RuntimeError, soundfile.LibsndfileError) as exc:
+        raise FormatError(path, "", f"not a readable WAV ({exc})") from None
+    return int(info.frames // int(round(SEGMENT_S * info.samplerate)))
+
+
+def _consecutive(items: list[tuple[int, Path]], what: str, folder: Path, need: int) -> list[Path]:
+    if not items:
+        raise FormatError(folder, what, "no files")
+    start = items[0][0]
+    if start not in (0, 1):
+        raise FormatError(folder, what, f"indices must start at 0 or 1, first file is {items[0][1].name}")
+    for expected, (i, path) in enumerate(items, start=start):
+        if i != expected:
+            raise FormatError(folder, what, f"index {expected} is missing (next file is {path.name}); "
+                              "every later segment would shift")
+    if len(items) < need:
+        raise FormatError(folder, what, f"{len(items)} files but the clip needs {need}")
+    return [p for _, p in items]
+
+
+def _clip(label: str, scenario: str, number: str, audio: Path, frames: list[tuple[int, Path]] | None,
+          rf: list[tuple[int, Path]] | None, video_dir: Path, rf_dir: Path, labels_json: Path | None,
+          expected: int | None, split: str | None, iq: Path | None) -> ClipFiles:
+    """One clip with its segment count S and every modality checked against S."""
+
+    if labels_json is not None:
+        truth = read_json(labels_json)
+        try:
+            present = truth["segments"]["drone_present"]
+            if not isinstance(present, list):
+                raise TypeError
+            expected = len(present)
+        except (KeyError, TypeError):
+            raise FormatError(labels_json, "key 'segments.drone_present'", "missing (per-segment ground truth)") from None
+    have = _audio_segments(audio)
+    s = expected if expected is not None else have
+    if have < s:
+        raise FormatError(audio, "length", f"holds {have} segments of {SEGMENT_S} s but the clip has {s} "
+                          "(truncated WAV?)")
+    if s < 1:
+        raise FormatError(audio, "length", f"shorter than one {SEGMENT_S} s segment")
+    if frames is None:
+        raise FormatError(video_dir, f"clip {number}", "no video frames (<n>_frame_<i>.jpg)")
+    if rf is None:
+        raise FormatError(rf_dir, f"clip {number}", "no RF spectrogram images")
+    frame_paths = _consecutive(frames, f"clip {number} video frames", video_dir, FRAMES_PER_SEGMENT * s)
+    rf_paths = _consecutive(rf, f"clip {number} RF images", rf_dir, s)
+    return ClipFiles(label, scenario, number, audio, frame_paths, rf_paths, labels_json, split, s, iq)
+
+
+def _add(clips: list[ClipFiles], skipped, strict: bool, make) -> None:
+    try:
+        clips.append(make())
+    except FormatError as err:
+        if strict:
+            raise
+        skipped.add(err)
+
+
+def _discover_generated(root: Path, manifest, strict: bool, skipped) -> list[ClipFiles]:
+    expected = manifest_segments(manifest)
+    clips: list[ClipFiles] = []
     for label in LABELS:
         audio_label = root / "audio" / label
         if not audio_label.is_dir():
             continue
         for scen_dir in sorted(p for p in audio_label.iterdir() if p.is_dir()):
             scenario = scen_dir.name
-            audio = {m.group(1): p for p in scen_dir.iterdir() if (m := _AUDIO_RE.match(p.name))}
-            frames = _indexed(root / "video" / label / scenario, _VIDEO_RE)
-            rf = _indexed(root / "rf" / label / scenario, _RF_RE)
+            video_dir, rf_dir = root / "video" / label / scenario, root / "rf" / label / scenario
+            audio = _audio_files(scen_dir)
+            frames, rf = _indexed(video_dir, _VIDEO_RE), _indexed(rf_dir, _RF_RE)
             for number in sorted(audio, key=int):
-                if number not in frames or number not in rf:
-                    continue
-                labels_json = root / "labels" / label / scenario / f"{number}.json"
-                clips.append(ClipFiles(label, scenario, number, audio[number], frames[number], rf[number],
-                                       labels_json if labels_json.is_file() else None))
+                if manifest is None and (number not in frames or number not in rf):
+                    continue          # a bare folder: clips without every modality are not clips
+                lj = root / "labels" / label / scenario / f"{number}.json"
+                iq = root / "rf_iq" / label / scenario / f"{number}.npy"
+                _add(clips, skipped, strict, lambda: _clip(
+                    label, scenario, number, audio[number], frames.get(number), rf.get(number), video_dir, rf_dir,
+                    lj if lj.is_file() else None, expected, None, iq if iq.is_file() else None))
     return clips
+
+
+def _discover_public(root: Path, manifest, strict: bool, skipped) -> list[ClipFiles]:
+    expected = manifest_segments(manifest) or PUBLIC_SEGMENTS
+    clips: list[ClipFiles] = []
+    for split in PUBLIC_SPLITS:
+        sub = PUBLIC_SUBFOLDERS[split]
+        for label in LABELS:
+            audio_label = root / PUBLIC_ROOTS["audio"] / split / label
+            if not audio_label.is_dir():
+                continue
+            for scen_dir in sorted((p for p in audio_label.iterdir() if p.is_dir()), key=lambda p: _natural(p.name)):
+                scenario = scen_dir.name
+                video_dir = root / PUBLIC_ROOTS["video"] / split / label / scenario / sub["video"]
+                rf_dir = root / PUBLIC_ROOTS["rf"] / split / label / scenario / sub["rf"]
+                audio = _audio_files(scen_dir)
+                frames, rf = _indexed(video_dir, _VIDEO_RE), _indexed(rf_dir, _RF_RE)
+                for number in sorted(audio, key=int):
+                    lj = root / PUBLIC_EXTRAS["labels"] / split / label / scenario / f"{number}.json"
+                    iq = root / PUBLIC_EXTRAS["rf_iq"] / split / label / scenario / f"{number}.sigmf-meta"
+                    _add(clips, skipped, strict, lambda: _clip(
+                        label, scenario, number, audio[number], frames.get(number), rf.get(number), video_dir, rf_dir,
+                        lj if lj.is_file() else None, expected, split, iq if iq.is_file() else None))
+    return clips
+
+
+def _natural(name: str) -> list:
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]
+
+
+def discover_clips(root: str | Path, *, strict: bool = True, skipped=None) -> list[ClipFiles]:
+    """All clips under ``root`` (generated or public layout), each checked; sorted by layout order."""
+    root = Path(root)
+    skipped = skipped if skipped is not None else Skipped()
+    manifest = read_manifest(root)
+    if is_public_layout(root):
+        return _discover_public(root, manifest, strict, skipped)
+    for modality in ("audio", "video", "rf"):
+        if not (root / modality).is_dir():
+            raise ValueError(f"root: {str(root)!r} has no {modality}/ folder (expected the generated TRIDENT layout "
+                             f"audio/, video/, rf/ or the public one {', '.join(p + '/' for p in PUBLIC_ROOTS.values())})")
+    return _discover_generated(root, manifest, strict, skipped)
 
 
 def _read_image(path: Path, grayscale_ok: bool) -> np.ndarray:
@@ -266,7 +460,7 @@ def _read_image(path: Path, grayscale_ok: bool) -> np.ndarray:
 
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None:
-        raise ValueError(f"cannot read image {path}")
+        raise FormatError(path, "", "not a readable image")
     if img.ndim == 3:
         img = cv2.cvtColor(img[..., :3], cv2.COLOR_BGR2RGB)
     elif not grayscale_ok:
@@ -277,11 +471,23 @@ def _read_image(path: Path, grayscale_ok: bool) -> np.ndarray:
 
 
 class TridentDataset:
-    """Aligned (audio MFCC, video segment, RF spectrogram, label, clip id, segment index) from a root."""
+    """Aligned (audio MFCC, video segment, RF spectrogram, label, clip id, segment index) from a root.
 
-    def __init__(self, root: str | Path):
+    ``mfcc``: ``evids`` / ``trident`` / None (the manifest's). ``strict=False`` skips bad clips and
+    lists them in ``skipped``."""
+
+    def __init__(self, root: str | Path, *, mfcc: str | None = None, strict: bool = True):
         self.root = Path(root)
-        self.clips = discover_clips(self.root)
+        if mfcc is not None and mfcc not in MFCC_PIPELINES:
+            raise ValueError(f"mfcc must be one of {', '.join(MFCC_PIPELINES)}, got {mfcc!r}")
+        self.skipped = Skipped()
+        self.clips = discover_clips(self.root, strict=strict, skipped=self.skipped)
+        if self.skipped:
+            import warnings
+
+            warnings.warn(f"{self.root}: skipped {len(self.skipped)} bad clip(s) (strict=False); first: "
+                          f"{self.skipped.reasons[0]}", SkippedRowsWarning, stacklevel=2)
+        self.mfcc_pipeline = mfcc or manifest_mfcc(read_manifest(self.root))
         self._index = [(c, s) for c, clip in enumerate(self.clips) for s in range(clip.n_segments)]
         self._cached: tuple[int, np.ndarray, dict | None] | None = None   # last clip's MFCC + truth
 
@@ -304,19 +510,28 @@ class TridentDataset:
         for s in range(clip.n_segments):
             yield self._segment(clip, s, mfcc, truth)
 
-    @staticmethod
-    def _mfcc(clip: ClipFiles) -> np.ndarray:
+    def _mfcc(self, clip: ClipFiles) -> np.ndarray:
         import soundfile
 
-
-        audio, rate = soundfile.read(str(clip.audio), dtype="float32", always_2d=True)
+        try:
+            if self.mfcc_pipeline == "trident":
+                return mfcc_trident(clip.audio, clip.n_segments)
+            audio, rate = soundfile.read(str(clip.audio), dtype="float32", always_2d=True)
+        except (RuntimeError, soundfile.LibsndfileError, EOFError) as exc:
+            raise FormatError(clip.audio, "", f"not a readable WAV ({exc})") from None
         return mfcc_segments(audio.mean(axis=1), float(rate), clip.n_segments)
 
     @staticmethod
     def _truth(clip: ClipFiles) -> dict | None:
         if clip.labels_json is None:
             return None
-        return json.loads(clip.labels_json.read_text())["segments"]
+        data = read_json(clip.labels_json)
+        segments = data.get("segments") if isinstance(data, dict) else None
+        keys = ("video_visible", "audio_audible", "rf_observable")
+        if not isinstance(segments, dict) or any(not isinstance(segments.get(k), list) or len(segments[k]) < clip.n_segments
+                                                 for k in keys):
+            raise FormatError(clip.labels_json, "key 'segments'", f"needs {', '.join(keys)} with {clip.n_segments} entries")
+        return segments
 
     @staticmethod
     def _segment(clip: ClipFiles, s: int, mfcc: np.ndarray, truth: dict | None) -> TridentSegment:
@@ -331,6 +546,113 @@ class TridentDataset:
                               clip_id=clip.clip_id, segment_index=s, observability=obs)
 
 
+def load_iq(clip: ClipFiles) -> np.ndarray | None:
+    """The clip's saved I/Q, complex64 (segments, samples): the generated ``.npy`` or the public
+    export's SigMF recording; None when the dataset has none."""
+    if clip.iq is None:
+        return None
+    if clip.iq.suffix == ".npy":
+        return np.load(clip.iq)[: clip.n_segments]
+    from simulator.formats.sigmf import read_sigmf
+
+    return read_sigmf(clip.iq)[0][: clip.n_segments]
+
+
 def iter_trident(root: str | Path) -> Iterator[TridentSegment]:
     """Every aligned segment under ``root`` in clip order."""
     yield from TridentDataset(root)
+
+
+# --------------------------------------------------------------------------------------------
+# Export: generated layout -> the public TRIDENT layout
+# --------------------------------------------------------------------------------------------
+
+def assign_splits(clips: list[ClipFiles], test_fraction: float) -> dict[str, str]:
+    """Clip id -> "Train"/"Test": per label, in clip order, clip j is Test when
+    floor((j + 1) f + 1/2) > floor(j f + 1/2), so round(n f) of a label's n clips, evenly spread."""
+    import math
+
+    if not 0.0 <= test_fraction < 1.0:
+        raise ValueError(f"test_fraction must be in [0, 1), got {test_fraction}")
+    out: dict[str, str] = {}
+    for label in LABELS:
+        mine = [c for c in clips if c.label == label]
+        for j, c in enumerate(mine):
+            test = math.floor((j + 1) * test_fraction + 0.5) > math.floor(j * test_fraction + 0.5)
+            out[c.clip_id] = "Test" if test else "Train"
+    return out
+
+
+def _jpeg(image: np.ndarray, quality: int = 95) -> bytes:
+    return _encode_image(image, ".jpg", quality)
+
+
+def export_public(src_root: str | Path, out: str | Path, *, mfcc: str = "evids", test_fraction: float = 0.2,
+                  jpeg_quality: int = 95, progress: bool = False) -> Path:
+    """Write a generated TRIDENT dataset in the public layout under ``out`` (an empty folder).
+
+    WAVs and video JPEGs are copied byte for byte (frames renamed 1-based); RF spectrograms are
+    re-encoded as JPEG (1-based); ``Labels/`` and ``RF_IQ/`` (conforming SigMF) are extras; the
+    manifest records the MFCC pipeline readers should use (``mfcc``), the split and the source."""
+    import hashlib
+
+    from simulator.formats.sigmf import write_recording
+
+    if mfcc not in MFCC_PIPELINES:
+        raise ValueError(f"mfcc must be one of {', '.join(MFCC_PIPELINES)}, got {mfcc!r}")
+    src_root, out = Path(src_root), Path(out)
+    source_manifest = read_manifest(src_root) or {}
+    clips = discover_clips(src_root)
+    splits = assign_splits(clips, test_fraction)
+    rf_cfg = (source_manifest.get("config") or {}).get("rf") or {}
+    items = clips
+    if progress:
+        from rich.progress import track
+
+        items = track(clips, description="export trident")
+    entries = []
+    for clip in items:
+        split = splits[clip.clip_id]
+        sub = PUBLIC_SUBFOLDERS[split]
+        rel = Path(split) / clip.label / clip.scenario
+        audio_dir = out / PUBLIC_ROOTS["audio"] / rel
+        video_dir = out / PUBLIC_ROOTS["video"] / rel / sub["video"]
+        rf_dir = out / PUBLIC_ROOTS["rf"] / rel / sub["rf"]
+        for d in (audio_dir, video_dir, rf_dir):
+            d.mkdir(parents=True, exist_ok=True)
+        (audio_dir / f"{clip.number}.wav").write_bytes(clip.audio.read_bytes())
+        for i, frame in enumerate(clip.frames[: FRAMES_PER_SEGMENT * clip.n_segments], start=1):
+            (video_dir / f"{clip.number}_frame_{i}.jpg").write_bytes(frame.read_bytes())
+        for j, image in enumerate(clip.rf[: clip.n_segments], start=1):
+            (rf_dir / f"{clip.number}_frame_{j}.jpg").write_bytes(_jpeg(_read_image(image, grayscale_ok=True), jpeg_quality))
+        if clip.labels_json is not None:
+            dest = out / PUBLIC_EXTRAS["labels"] / rel / f"{clip.number}.json"
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            dest.write_bytes(clip.labels_json.read_bytes())
+        if clip.iq is not None and rf_cfg:
+            info = json.loads(clip.labels_json.read_text()).get("rf", {}) if clip.labels_json else {}
+            iq = load_iq(clip).astype(np.complex64)
+            starts = info.get("capture_start_s") or [s * SEGMENT_S for s in range(iq.shape[0])]
+            base = out / PUBLIC_EXTRAS["rf_iq"] / rel / clip.number
+            base.parent.mkdir(parents=True, exist_ok=True)
+            write_recording(base, iq, sample_rate_hz=rf_cfg["sample_rate_hz"],
+                            center_frequency_hz=rf_cfg["center_frequency_hz"], capture_start_s=starts[: iq.shape[0]],
+                            label=clip.label)
+        entries.append({"clip": clip.clip_id, "split": split, "segments": clip.n_segments})
+    durations = sorted({c.n_segments * SEGMENT_S for c in clips})
+    manifest = {
+        "format": "trident-public", "generator": "simulator.formats.trident.export_public",
+        "mfcc": {"pipeline": mfcc, **({"sample_rate_hz": TRIDENT_SAMPLE_RATE_HZ, "decimation": TRIDENT_DECIMATION,
+                                       "n_fft": TRIDENT_N_FFT, "hop_length": TRIDENT_HOP, "n_mfcc": MFCC_N_MFCC}
+                                      if mfcc == "trident" else
+                                      {"n_fft": MFCC_N_FFT, "n_mels": MFCC_N_MELS, "n_mfcc": MFCC_N_MFCC,
+                                       "top_db": MFCC_TOP_DB})},
+        "segments_per_clip": clips[0].n_segments if len({c.n_segments for c in clips}) == 1 else None,
+        "clip_duration_s": durations[0] if len(durations) == 1 else durations,
+        "test_fraction": test_fraction, "clips": entries,
+        "source": {"seed": source_manifest.get("seed"), "content_sha256": source_manifest.get("content_sha256"),
+                   "manifest_sha256": hashlib.sha256((src_root / MANIFEST).read_bytes()).hexdigest()
+                   if (src_root / MANIFEST).is_file() else None},
+    }
+    (out / MANIFEST).write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n")
+    return out
