@@ -134,7 +134,8 @@ def load_clips(root: Path, progress: bool = True) -> list[ClipArrays]:
 def _clip_info(clip, n_segments: int) -> dict:
     """Scene, split, twin and drone size of a clip from its labels JSON (generated data), else the
     scenario folder as the scene (a TRIDENT scenario folder is one recording session)."""
-    info: dict = {"scene": f"{clip.label}/{clip.scenario}", "split": None, "twin": None, "drone_px": None,
+    public = {"Train": "train", "Test": "test"}.get(getattr(clip, "split", None) or "")
+    info: dict = {"scene": f"{clip.label}/{clip.scenario}", "split": public, "twin": None, "drone_px": None,
                   "conditions": {}, "snr_db": {}}
     if clip.labels_json is None or not Path(clip.labels_json).is_file():
         return info
@@ -167,9 +168,10 @@ def split_clips(clips: list[ClipArrays], cfg: SplitConfig) -> dict[str, list[int
     when every clip carries one; otherwise scenes are shuffled (seeded) and assigned by fraction,
     stratified by the scene's label set. Too few scenes for three disjoint splits -> UserInputError.
     """
-    if cfg.source == "dataset" and clips and all(c.split is not None for c in clips):
+    if cfg.source == "dataset" and clips and all(c.split is not None for c in clips) and \
+            all(any(c.split == s for c in clips) for s in SPLITS):
         out = {s: sorted(i for i, c in enumerate(clips) if c.split == s) for s in SPLITS}
-    else:
+    else:              # no recorded split, or one without validation clips (the public Train/Test)
         out = _split_by_scene(clips, cfg)
     for s in SPLITS:
         if not out[s]:
