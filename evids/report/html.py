@@ -434,7 +434,7 @@ def build_report(run_dir: str | Path) -> Path:
                                                               "Reliability diagrams, first noise seed (15 bins)"))
     if sweep:
         parts.append("<h2>Degradation sweep</h2><p class='note'>One modality degraded at a time (others clean); "
-                     f"mean &plusmn; std over noise seeds {sweep['seeds']}.</p>")
+                     f"mean &plusmn; std over training runs x noise seeds {sweep['seeds']}.</p>")
         for metric in ("accuracy", "ece", "uauc_entropy", "uauc_vacuity"):
             parts.append(_img(_sweep_fig(sweep["rows"], metric), f"{metric} vs severity"))
     if conflict and "programs" in conflict and isinstance(conflict["programs"], list) and \
