@@ -497,6 +497,7 @@ def _swap_program(ctx: Context, prog) -> dict:
     flips, conf, C, FB, acc, dis = [], [], [], [], {}, []
     dis_acc = {"ds": [], "average": []}
     where = []
+    ctx.cache.setdefault("conflict_correct", {})[prog.key] = []
     for run in ctx.runs:
         full = ctx.outputs("clean", 0, run=run)
         clean = Outputs(full.logit[:, rows], full.alpha[:, rows], full.emb[:, rows])
