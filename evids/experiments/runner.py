@@ -302,7 +302,8 @@ def observability_summary(ctx: Context) -> dict:
     edges = [0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48]
     for split, idx in ctx.prep.split.items():
         drone = [ctx.prep.clips[i] for i in idx if ctx.prep.clips[i].label == 0]
-        px = np.concatenate([c.drone_px for c in drone if c.drone_px is not None]) if drone else np.zeros(0)
+        sizes = [c.drone_px for c in drone if c.drone_px is not None]
+        px = np.concatenate(sizes) if sizes else np.zeros(0)
         obs = {m: float(np.mean(np.concatenate([c.observability[m] for c in drone if m in c.observability])))
                if drone and all(m in c.observability for c in drone) else None for m in ("video", "audio", "rf")}
         out[split] = {"n_clips": len(idx), "n_drone_clips": len(drone), "px_edges": edges,
