@@ -1,7 +1,10 @@
 """Default materials and thermal offsets per target kind and part role.
 
-Values are typical, documented choices: matte plastic/carbon bodies (emissivity 0.9), anodised or
-bare-metal motors (0.3: they mirror the cold sky), warm motors and batteries in flight.
+Sources and reasoning in docs/PHYSICS.md ("Thermal part defaults"): LWIR emissivities of the real
+materials (plastics and painted or carbon composites ~0.9-0.95, black-anodised aluminium motor bells
+~0.8-0.9, so motors emit rather than mirror the sky); motor temperature rise from infrared
+thermography of hovering quadcopters (37-44 C motors, i.e. ~+15-20 K over ambient, at no payload:
+Processes 2025, 13(10), 3034); motors and battery are the hottest parts.
 """
 from __future__ import annotations
 
@@ -10,7 +13,7 @@ from scenes.schema import Material, Target
 _MATERIALS: dict[str, Material] = {
     "body": Material(rgb_reflectance=(0.06, 0.06, 0.065), emissivity=0.92),
     "arm": Material(rgb_reflectance=(0.05, 0.05, 0.05), emissivity=0.9),
-    "motor": Material(rgb_reflectance=(0.35, 0.35, 0.37), emissivity=0.3),
+    "motor": Material(rgb_reflectance=(0.08, 0.08, 0.09), emissivity=0.85),
     "prop": Material(rgb_reflectance=(0.04, 0.04, 0.04), emissivity=0.88),
     "battery": Material(rgb_reflectance=(0.15, 0.15, 0.16), emissivity=0.9),
     "camera": Material(rgb_reflectance=(0.03, 0.03, 0.03), emissivity=0.85),
@@ -23,8 +26,8 @@ _MATERIALS: dict[str, Material] = {
 }
 
 _OFFSETS_K: dict[str, dict[str, float]] = {
-    "quadcopter": {"body": 6.0, "arm": 3.0, "motor": 25.0, "prop": 1.0, "battery": 12.0, "camera": 8.0},
-    "hexacopter": {"body": 6.0, "arm": 3.0, "motor": 28.0, "prop": 1.0, "battery": 14.0, "camera": 8.0},
+    "quadcopter": {"body": 5.0, "arm": 2.0, "motor": 20.0, "prop": 0.5, "battery": 12.0, "camera": 6.0},
+    "hexacopter": {"body": 5.0, "arm": 2.0, "motor": 22.0, "prop": 0.5, "battery": 14.0, "camera": 6.0},
     "fixed_wing": {"fuselage": 4.0, "wing": 1.0, "tail": 1.0, "motor": 30.0, "prop": 1.0, "body": 4.0},
     "bird": {"body": 8.0, "head": 10.0, "feather": 2.0, "wing": 2.0},
     "airliner": {"fuselage": -2.0, "wing": -3.0, "tail": -3.0, "engine": 80.0},

@@ -6,6 +6,7 @@ the YAML (names end in _deg); temperatures in kelvin (names end in _k).
 from __future__ import annotations
 
 import datetime as dt
+import math
 from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -137,10 +138,61 @@ class Sky(_Model):
     clouds: Clouds | None = None
 
 
+def saturation_vapour_density_g_m3(air_temperature_k: float) -> float:
+    """Water-vapour density at saturation over water, g m^-3 (Magnus form, Alduchov & Eskridge 1996)."""
+    t_c = float(air_temperature_k) - 273.15
+    e_pa = 610.94 * math.exp(17.625 * t_c / (t_c + 243.04))
+    return e_pa / (461.5 * float(air_temperature_k)) * 1000.0
+
+
+AtmosphereModel = Literal["user", "tropical", "midlat_summer", "midlat_winter", "subarctic_summer",
+                          "subarctic_winter", "us_standard"]
+
+
 class Atmosphere(_Model):
+    """Air at the sensor. LWIR sky and paths come from LOWTRAN7 tables (docs/PHYSICS.md):
+
+    - ``model: user`` (default): the sky is interpolated between the AFGL model atmospheres by the
+      absolute humidity of this air; horizontal paths use LOWTRAN7 for exactly this air.
+    - a named AFGL model: that model's sky and path tables (air temperature still sets L(T_air)).
+    Humidity: ``relative_humidity`` (0-1) or ``absolute_humidity_g_m3`` (water-vapour density; it
+    then sets relative_humidity, and both given must agree). ``visibility_m`` (Koschmieder, 2 % contrast) drives the visible haze and the LWIR aerosol.
+    """
+
     air_temperature_k: float = Field(default=288.0, gt=200.0, lt=340.0)
     relative_humidity: float = Field(default=0.5, ge=0.0, le=1.0)
+    absolute_humidity_g_m3: float | None = Field(default=None, ge=0.0, le=60.0)
     visibility_m: float = Field(default=20000.0, gt=10.0)
+    model: AtmosphereModel = "user"
+
+    @model_validator(mode="before")
+    @classmethod
+    def _humidity_from_absolute(cls, data):
+        """absolute_humidity_g_m3 sets relative_humidity (so every consumer sees one air); both
+        given must agree within 0.01 (a resolved YAML carries both)."""
+        if not isinstance(data, dict) or data.get("absolute_humidity_g_m3") is None:
+            return data
+        try:
+            ah = float(data["absolute_humidity_g_m3"])
+            t_k = float(data.get("air_temperature_k", 288.0))
+        except (TypeError, ValueError):
+            return data   # the field validators report the bad value
+        if not 200.0 < t_k < 340.0 or ah < 0:
+            return data
+        rh = ah / saturation_vapour_density_g_m3(t_k)
+        if rh > 1.0 + 1e-6:
+            raise ValueError(f"absolute_humidity_g_m3 {ah} exceeds saturation at {t_k} K "
+                             f"({saturation_vapour_density_g_m3(t_k):.2f} g m^-3)")
+        given = data.get("relative_humidity")
+        if given is not None:
+            try:
+                if abs(float(given) - rh) > 0.01:
+                    raise ValueError(f"relative_humidity {given} and absolute_humidity_g_m3 {ah} disagree "
+                                     f"(that is RH {rh:.3f} at {t_k} K): give one of them")
+            except TypeError:
+                return data
+            return data
+        return {**data, "relative_humidity": min(rh, 1.0)}
 
 
 class CameraIntrinsics(_Model):
@@ -150,9 +202,47 @@ class CameraIntrinsics(_Model):
     spp: int = Field(default=4, ge=1, le=1024, description="samples per pixel of the radiance pass")
 
 
+class RgbCamera(CameraIntrinsics):
+    """Visible camera model (simulator/sensors/camera.py). Defaults: a typical 1/2.3-inch CMOS
+    (6.17 mm wide, 1.55 um native pixels) behind an f/2.8 lens; the output pixel averages the
+    native pixels it covers. exposure_time_s None = auto exposure capped at one frame period."""
+
+    sensor_width_mm: float = Field(default=6.17, gt=0.5, le=50.0)
+    native_pixel_pitch_um: float = Field(default=1.55, gt=0.5, le=30.0)
+    f_number: float = Field(default=2.8, ge=0.7, le=32.0)
+    defocus_blur_um: float = Field(default=0.0, ge=0.0, le=500.0, description="blur-circle diameter")
+    full_well_e: float = Field(default=4600.0, gt=100.0, description="per native pixel")
+    read_noise_e: float = Field(default=2.5, ge=0.0, description="per native pixel, rms")
+    quantum_efficiency: float = Field(default=0.5, gt=0.0, le=1.0)
+    exposure_time_s: float | None = Field(default=None, gt=0.0, le=1.0)
+    max_gain: float = Field(default=16.0, ge=1.0, le=1024.0)
+    adc_bits: Literal[8, 10, 12, 14, 16] = 12
+
+
 class ThermalCamera(CameraIntrinsics):
-    netd_k: float = Field(default=0.05, gt=0.0, le=1.0)
+    """Uncooled LWIR microbolometer model. Defaults: a 640x512, 12 um pixel core behind an f/1.0
+    lens, NETD 40 mK, time constant 10 ms, small residual column fixed-pattern noise after a
+    shutter NUC; radiometric 16-bit counts T = counts * kelvin_per_count and an 8-bit AGC view."""
+
+    netd_k: float = Field(default=0.04, gt=0.0, le=1.0)
     kelvin_per_count: float = Field(default=0.01, gt=0.0)
+    pixel_pitch_um: float = Field(default=12.0, gt=1.0, le=100.0)
+    f_number: float = Field(default=1.0, ge=0.5, le=8.0)
+    wavelength_um: float = Field(default=10.0, ge=7.0, le=15.0, description="PSF wavelength")
+    defocus_blur_um: float = Field(default=0.0, ge=0.0, le=1000.0, description="blur-circle diameter")
+    time_constant_s: float = Field(default=0.010, ge=0.0, le=0.1)
+    fpn_column_offset_k: float = Field(default=0.02, ge=0.0, le=10.0, description="rms per-column offset")
+    fpn_column_gain: float = Field(default=0.005, ge=0.0, le=0.5, description="rms per-column gain error")
+    adc_bits: Literal[14, 16] = 16
+    agc: Literal["minmax", "percentile", "histogram"] = "minmax"
+
+    @model_validator(mode="after")
+    def _counts_cover_scene(self) -> "ThermalCamera":
+        full_scale_k = self.kelvin_per_count * (2 ** self.adc_bits - 1)
+        if full_scale_k < 400.0:
+            raise ValueError(f"kelvin_per_count x (2^adc_bits - 1) = {full_scale_k:.0f} K must reach 400 K "
+                             f"(radiometric counts T = counts * kelvin_per_count)")
+        return self
 
 
 class CameraOffset(_Model):
@@ -168,9 +258,10 @@ class CameraRig(_Model):
     position_m: Vec3 = (0.0, 0.0, 1.5)
     look_at_m: Vec3 | None = None
     track_target: str | None = None
-    rgb: CameraIntrinsics = Field(default_factory=CameraIntrinsics)
+    rgb: RgbCamera = Field(default_factory=RgbCamera)
     thermal: ThermalCamera = Field(default_factory=ThermalCamera)
     thermal_offset: CameraOffset = Field(default_factory=CameraOffset)
+    sensor: Literal["camera", "ideal"] = Field(default="camera", description="ideal = no camera model")
 
     @model_validator(mode="after")
     def _pointing(self) -> "CameraRig":

@@ -11,6 +11,7 @@ STREAMS = {
     "acoustics": 5,
     "rf": 6,
     "generation": 7,
+    "camera": 8,
 }
 
 

@@ -15,7 +15,8 @@ from simulator.files import atomic_folder, package_versions, write_hashes
 from simulator.formats.native import FORMAT_VERSION, frame_name, write_json, write_png
 from simulator.physics.timeline import Timeline, build_timeline
 from simulator.render.labels import CLASS_OF_KIND, frame_labels
-from simulator.sensors.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8
+from simulator.sensors.camera import CameraModel
+from simulator.sensors.encode import kelvin_to_counts, rgb_to_srgb8
 
 FORMATS = ("native", "antiuav")
 
@@ -91,6 +92,7 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
     times = times or PassTimes()
     timeline = build_timeline(scenario, seed, n_frames)
     renderer = SequenceRenderer(timeline)
+    camera = CameraModel(timeline, renderer.exposure)  # issue 13: the camera model (sensor: ideal = plain encodings)
     netd = scenario.camera_rig.thermal.netd_k
     kpc = scenario.camera_rig.thermal.kelvin_per_count
     written: dict[str, Path] = {}
@@ -118,9 +120,11 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                 t0 = time.perf_counter()
                 buffers = renderer.render_frame(i)
                 t0 = times.add("render (rgb + thermal + masks)", t0)
-                write_png(tmp / "rgb" / frame_name(i, "png"), rgb_to_srgb8(buffers.rgb_linear))
-                write_png(tmp / "thermal" / frame_name(i, "png"), kelvin_to_counts(buffers.thermal_kelvin, kpc))
-                write_png(tmp / "thermal_agc" / frame_name(i, "png"), agc_8bit(buffers.thermal_kelvin)[0])
+                recorded = camera.record(i, buffers.rgb_linear, buffers.thermal_radiance, buffers.thermal_kelvin)
+                t0 = times.add("camera model", t0)
+                write_png(tmp / "rgb" / frame_name(i, "png"), recorded.rgb8)
+                write_png(tmp / "thermal" / frame_name(i, "png"), recorded.thermal_counts)
+                write_png(tmp / "thermal_agc" / frame_name(i, "png"), recorded.thermal_agc8)
                 write_png(tmp / "masks" / "rgb" / frame_name(i, "png"), buffers.mask_rgb)
                 write_png(tmp / "masks" / "thermal" / frame_name(i, "png"), buffers.mask_thermal)
                 t0 = times.add("encode + write", t0)
@@ -145,6 +149,7 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
             "format_version": FORMAT_VERSION, "scenario_name": scenario.name, "seed": int(seed),
             "n_frames": timeline.n_frames, "frame_rate_hz": scenario.frame_rate_hz,
             "cameras": {"rgb": _camera_meta(timeline, "rgb"), "thermal": _camera_meta(timeline, "thermal")},
+            "sensor": camera.metadata(),
             "rgb_exposure": round(renderer.exposure, 9), "mitsuba_variant": renderer.mi.variant(),
             "versions": package_versions(),
         })

@@ -1,4 +1,4 @@
-"""Sky geometry and LWIR sky radiance (numpy only): sun position, cloud cover field, thermal sky.
+"""Sky geometry and LWIR sky radiance (numpy only): sun position (NREL SPA via pvlib), cloud cover field, thermal sky.
 
 Directions are unit vectors in the world frame (ENU, +z up). The visible sky colour comes from
 Mitsuba's Hosek-Wilkie ``sunsky`` and is built in simulator.render.renderer; everything here is
@@ -11,30 +11,26 @@ import datetime as dt
 import numpy as np
 
 from scenes.schema import Atmosphere, Clouds, Sky, Sun
+from simulator.physics import atmosphere as lwir_atmosphere
 from simulator.physics import thermal
 from simulator.seeding import rng_for
 
 LAPSE_RATE_K_PER_M = 0.0065
 
 
-def solar_elevation_azimuth_deg(when_utc: dt.datetime, latitude_deg: float, longitude_deg: float) -> tuple[float, float]:
-    """Solar elevation and azimuth (clockwise from north), NOAA's low-precision algorithm (~0.1 deg)."""
-    if when_utc.tzinfo is not None:
-        when_utc = when_utc.astimezone(dt.timezone.utc).replace(tzinfo=None)
-    day_of_year = when_utc.timetuple().tm_yday
-    hours = when_utc.hour + when_utc.minute / 60 + when_utc.second / 3600
-    gamma = 2 * np.pi / 365 * (day_of_year - 1 + (hours - 12) / 24)
-    eqtime = 229.18 * (0.000075 + 0.001868 * np.cos(gamma) - 0.032077 * np.sin(gamma)
-                       - 0.014615 * np.cos(2 * gamma) - 0.040849 * np.sin(2 * gamma))
-    decl = (0.006918 - 0.399912 * np.cos(gamma) + 0.070257 * np.sin(gamma) - 0.006758 * np.cos(2 * gamma)
-            + 0.000907 * np.sin(2 * gamma) - 0.002697 * np.cos(3 * gamma) + 0.00148 * np.sin(3 * gamma))
-    true_solar_min = hours * 60 + eqtime + 4 * longitude_deg
-    hour_angle = np.radians(true_solar_min / 4 - 180)
-    lat = np.radians(latitude_deg)
-    cos_zenith = np.sin(lat) * np.sin(decl) + np.cos(lat) * np.cos(decl) * np.cos(hour_angle)
-    zenith = np.arccos(np.clip(cos_zenith, -1, 1))
-    azimuth = np.degrees(np.arctan2(np.sin(hour_angle), np.cos(hour_angle) * np.sin(lat) - np.tan(decl) * np.cos(lat))) + 180
-    return float(90 - np.degrees(zenith)), float(azimuth % 360)
+def solar_elevation_azimuth_deg(when_utc: dt.datetime, latitude_deg: float, longitude_deg: float, *,
+                                altitude_m: float = 0.0, pressure_pa: float = 101325.0,
+                                temperature_c: float = 12.0) -> tuple[float, float]:
+    """Apparent (refracted) solar elevation and azimuth (clockwise from north) in degrees, from
+    NREL's Solar Position Algorithm (Reda & Andreas 2004, +-0.0003 deg) as implemented by pvlib."""
+    import pandas as pd
+    from pvlib.solarposition import get_solarposition
+
+    stamp = pd.Timestamp(when_utc)
+    stamp = stamp.tz_localize("UTC") if stamp.tzinfo is None else stamp.tz_convert("UTC")
+    pos = get_solarposition(pd.DatetimeIndex([stamp]), latitude_deg, longitude_deg, altitude=altitude_m,
+                            pressure=pressure_pa, method="nrel_numpy", temperature=temperature_c)
+    return float(pos["apparent_elevation"].iloc[0]), float(pos["azimuth"].iloc[0]) % 360.0
 
 
 def sun_elevation_azimuth_deg(sun: Sun) -> tuple[float, float]:
@@ -90,26 +86,45 @@ class CloudField:
 
 
 class ThermalSky:
-    """At-sensor LWIR radiance for any direction: clear sky (elevation-dependent emissivity),
-    optional clouds (near-blackbodies at the lapse-rate temperature of their altitude), and the
-    ground (at air temperature) below the horizon."""
+    """At-sensor LWIR radiance for any direction: the clear sky of the scene's LOWTRAN7 atmosphere
+    (simulator.physics.atmosphere), optional clouds, and the ground (at air temperature) below the horizon.
+
+    A cloud is a blackbody at the lapse-rate temperature of its base altitude, weighted by the
+    cover field (its optical thickness proxy, 0-1), seen through the slant path below it:
+    L = (1 - c) L_clear + c (tau_base L(T_cloud) + L_path,base).
+    """
 
     def __init__(self, sky: Sky, atmosphere: Atmosphere, seed: int):
         self.atmosphere = atmosphere
-        self.eps_zenith = thermal.zenith_emissivity(atmosphere.relative_humidity)
-        self.air_radiance = float(thermal.band_radiance(atmosphere.air_temperature_k))
+        self.lwir = lwir_atmosphere.for_scene(atmosphere)
+        self.air_radiance = self.lwir.air_radiance
         self.clouds = CloudField(sky.clouds, seed) if sky.clouds is not None and sky.clouds.coverage > 0 else None
         if self.clouds is not None:
+            self.cloud_altitude_m = sky.clouds.altitude_m
             cloud_t = atmosphere.air_temperature_k - LAPSE_RATE_K_PER_M * sky.clouds.altitude_m
             self.cloud_radiance = float(thermal.band_radiance(cloud_t))
 
+    def clear_radiance(self, directions: np.ndarray) -> np.ndarray:
+        return self.lwir.sky_radiance(elevation_rad(directions))
+
+    def cloud_base_radiance(self, elevation: np.ndarray) -> np.ndarray:
+        """Radiance of an opaque cloud base seen at these elevations (through the air below it)."""
+        sin_el = np.maximum(np.sin(elevation), 1e-3)
+        range_m = self.cloud_altitude_m / sin_el
+        return (self.lwir.transmission(range_m, elevation) * self.cloud_radiance
+                + self.lwir.path_radiance(range_m, elevation))
+
     def radiance(self, directions: np.ndarray) -> np.ndarray:
         el = elevation_rad(directions)
-        clear = thermal.sky_emissivity(el, self.eps_zenith) * self.air_radiance
+        clear = self.lwir.sky_radiance(el)
         if self.clouds is None:
             return clear
         cover = self.clouds.coverage(directions)
-        return (1 - cover) * clear + cover * np.maximum(clear, self.cloud_radiance)
+        flat_el = el.ravel()
+        up = flat_el > 0
+        base = np.full(flat_el.shape, self.air_radiance)
+        base[up] = self.cloud_base_radiance(flat_el[up])
+        return (1 - cover) * clear + cover * base.reshape(el.shape)
 
     def reflected_radiance(self) -> float:
         """Radiance a diffuse surface of random orientation reflects: half the cosine-weighted

@@ -1,4 +1,6 @@
-"""LWIR (8-14 um) band radiometry: Planck band radiance, its inverse, sky brightness and path.
+"""LWIR (8-14 um) band radiometry: Planck band radiance, its inverse, surface radiance and its solve.
+
+Sky and path radiance come from simulator.physics.atmosphere (LOWTRAN7 tables).
 
 Pure numpy + colour-science; no renderer import. Radiances are in W sr^-1 m^-2 (band-integrated).
 """
@@ -54,54 +56,9 @@ def band_radiance_derivative(temperature_k: float) -> float:
     return float((band_radiance(temperature_k + 0.05) - band_radiance(temperature_k - 0.05)) / 0.1)
 
 
-def zenith_emissivity(relative_humidity: float) -> float:
-    """Clear-sky zenith emissivity in the 8-14 um window from relative humidity (0-1).
-
-    A documented, simple preset: 0.12 in very dry air rising to 0.32 at saturation, so that
-    typical mid-latitude air (RH 0.4) gives the reference value 0.2.
-    """
-    return 0.12 + 0.2 * float(np.clip(relative_humidity, 0.0, 1.0))
-
-
-def sky_emissivity(elevation_rad: np.ndarray, eps_zenith: float) -> np.ndarray:
-    """eps(theta) = 1 - (1 - eps_zenith)^(1/cos theta), theta from zenith; 1 at and below the horizon."""
-    cos_theta = np.sin(np.asarray(elevation_rad, dtype=np.float64))
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        eps = 1.0 - (1.0 - eps_zenith) ** (1.0 / np.maximum(cos_theta, 1e-9))
-    return np.where(cos_theta > 1e-9, eps, 1.0)
-
-
-def clear_sky_radiance(elevation_rad: np.ndarray, air_temperature_k: float, eps_zenith: float) -> np.ndarray:
-    """Sky band radiance seen along a line of sight at this elevation (ground at air temperature below)."""
-    return sky_emissivity(elevation_rad, eps_zenith) * band_radiance(air_temperature_k)
-
-
-def lwir_extinction_per_m(visibility_m: float, relative_humidity: float) -> float:
-    """LWIR extinction coefficient beta (1/m): water-vapour continuum plus haze/fog scattering.
-
-    Vapour term 0.05-0.25 /km rising with humidity; aerosol term from the visible extinction
-    (Koschmieder 3.912 / V) scaled by 0.1 for 10 um, which only matters in fog (V < 2 km).
-    """
-    vapour = (0.05 + 0.2 * float(np.clip(relative_humidity, 0, 1))) / 1000.0
-    aerosol = 0.1 * 3.912 / float(visibility_m)
-    return vapour + aerosol
-
-
 def visible_extinction_per_m(visibility_m: float) -> float:
-    """Koschmieder: beta = 3.912 / V for a 2 % contrast threshold."""
+    """Koschmieder: beta = 3.912 / V for a 2 % contrast threshold (the visible haze)."""
     return 3.912 / float(visibility_m)
-
-
-def transmission(range_m: np.ndarray | float, extinction_per_m: float) -> np.ndarray:
-    """tau(R) = exp(-beta R)."""
-    return np.exp(-extinction_per_m * np.asarray(range_m, dtype=np.float64))
-
-
-def at_sensor_radiance(target_radiance: np.ndarray, range_m: np.ndarray | float, extinction_per_m: float,
-                       air_temperature_k: float) -> np.ndarray:
-    """L_sensor = tau L_target + (1 - tau) L(T_air)."""
-    tau = transmission(range_m, extinction_per_m)
-    return tau * target_radiance + (1.0 - tau) * band_radiance(air_temperature_k)
 
 
 def surface_radiance(temperature_k: np.ndarray | float, emissivity: float, reflected_radiance: float) -> np.ndarray:

@@ -161,15 +161,16 @@ def _part_temperatures(scenario: Scenario, target: Target, position: np.ndarray,
     out: dict[str, np.ndarray] = {}
     mode = target.thermal.mode
     if mode == "match_background":
-        beta = thermal.lwir_extinction_per_m(scenario.atmosphere.visibility_m, scenario.atmosphere.relative_humidity)
         rel = position - rig_origin
         range_m = np.linalg.norm(rel, axis=-1)
-        background = sky.radiance(rel / range_m[:, None])
+        sight = rel / range_m[:, None]
+        sight_elevation = np.arcsin(np.clip(sight[:, 2], -1.0, 1.0))
+        background = sky.radiance(sight)
         bg_bright_k = thermal.brightness_temperature(background)
         end = target.thermal.contrast_end_k if target.thermal.contrast_end_k is not None else target.thermal.contrast_k
         wanted_k = bg_bright_k + target.thermal.contrast_k + (end - target.thermal.contrast_k) * ramp
-        tau = thermal.transmission(range_m, beta)
-        surface_needed = (thermal.band_radiance(wanted_k) - (1 - tau) * sky.air_radiance) / tau
+        tau = sky.lwir.transmission(range_m, sight_elevation)
+        surface_needed = (thermal.band_radiance(wanted_k) - sky.lwir.path_radiance(range_m, sight_elevation)) / tau
         reflected = sky.reflected_radiance()
         for role in _part_roles(target.kind):
             eps = material_for(target, role).emissivity

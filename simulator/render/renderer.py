@@ -5,7 +5,7 @@ One scene graph per camera, sharing geometry built from the same procedural mesh
   a directional sun, path traced. Visible haze is exact per object: reflectance is scaled by the
   transmittance t and the airlight (1 - t) A is added as emission, so L = t L_obj + (1 - t) A.
 - Thermal: every part is an emitter of its at-sensor band radiance
-  tau (eps L(T) + (1 - eps) L_refl) + (1 - tau) L(T_air) over an LWIR sky map (simulator.physics.sky);
+  tau (eps L(T) + (1 - eps) L_refl) + L_path (LOWTRAN7 tables) over an LWIR sky map (simulator.physics.sky);
   one bounce suffices because the physics is folded into the emission (no Mitsuba thermal physics).
 - Masks: the same scene at 1 spp with a box filter and only direct emission, where each shape emits
   its target id and the sky emits nothing, so a pixel's value is exactly the id it sees (0 = sky).
@@ -153,7 +153,6 @@ class SequenceRenderer:
         self.sky = SkyMaps(mi, timeline)
         atm = scenario.atmosphere
         self.beta_visible = thermal.visible_extinction_per_m(atm.visibility_m)
-        self.beta_lwir = thermal.lwir_extinction_per_m(atm.visibility_m, atm.relative_humidity)
         self.air_radiance = float(thermal.band_radiance(atm.air_temperature_k))
         self.rig = scenario.camera_rig
         self._targets = {t.name: t for t in scenario.targets}
@@ -222,11 +221,15 @@ class SequenceRenderer:
             params["sensor.to_world"] = mi.ScalarTransform4f().look_at(
                 origin=camera.origin_m[frame].tolist(), target=(camera.origin_m[frame] + camera.forward[frame]).tolist(),
                 up=camera.up[frame].tolist())
+            paths = {}
+            for tid, track in tracks.items():  # LWIR path per target (LOWTRAN7 tables, simulator.physics.atmosphere)
+                sight = track.position_m[frame] - camera.origin_m[frame]
+                paths[tid] = (float(np.linalg.norm(sight)), *self.sky.thermal_sky.lwir.along(sight))
             for key, tid, role in self._shape_keys:
                 track = tracks[tid]
                 verts, _ = geometry[tid][role]
                 params[f"{key}.vertex_positions"] = mi.Float(verts.astype(np.float32).ravel())
-                range_m = float(np.linalg.norm(track.position_m[frame] - camera.origin_m[frame]))
+                range_m, tau, path_radiance = paths[tid]
                 material = material_for(self._targets[track.name], role)
                 if which == "rgb":
                     t = float(np.exp(-self.beta_visible * range_m))
@@ -235,8 +238,7 @@ class SequenceRenderer:
                 else:
                     temp_k = float(track.part_temperature_k[role][frame])
                     surface = thermal.surface_radiance(temp_k, material.emissivity, self.sky.reflected_lwir)
-                    tau = float(thermal.transmission(range_m, self.beta_lwir))
-                    value = float(tau * surface + (1 - tau) * self.air_radiance)
+                    value = float(tau * surface + path_radiance)
                     params[f"{key}.emitter.radiance.value"] = mi.Color3f(value, value, value)
                     params[f"{key}.bsdf.reflectance.value"] = mi.Color3f(0.0, 0.0, 0.0)
             params.update()

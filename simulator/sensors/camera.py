@@ -1,0 +1,404 @@
+"""The camera model between the renderer and the files: what a real RGB camera and an uncooled LWIR
+microbolometer record of the rendered radiance (on by default; ``camera_rig.sensor: ideal`` skips it).
+
+Per frame and camera, in this order (all linear stages commute; noise comes last):
+1. motion blur of each target over the integration window (RGB: box over the exposure time;
+   thermal: the bolometer's exponential response exp(-s/tau) over one frame period), applied in a
+   window around the target's projection, from its image motion between frames;
+2. optics: diffraction (Airy, circular pupil) x defocus (uniform blur circle) x pixel aperture,
+   as one transfer function, applied by FFT (``psf_kernel`` gives the discrete kernel);
+3. thermal: first-order bolometer lag y_n = a x_n + (1 - a) y_(n-1), a = 1 - exp(-dt/tau)
+   (the in-frame part is step 1); brightness temperature; per-column fixed-pattern gain/offset
+   about the NUC reference (air temperature); temporal NETD noise; 14/16-bit radiometric counts;
+   8-bit AGC view;
+4. RGB: photo-electrons from the physical radiance (auto exposure capped at one frame period, then
+   gain up to max_gain), shot (Poisson) and read noise, ADC quantisation, sRGB 8-bit.
+Noise is seeded per (scenario seed, camera, frame) through ``rng_for``; fixed-pattern noise per
+(seed, camera). Labels are computed from the renderer's exact buffers, never from these frames.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from scenes.schema import RgbCamera, ThermalCamera
+from simulator.physics import thermal as radiometry
+from simulator.physics.timeline import Timeline
+from simulator.seeding import rng_for
+from simulator.sensors.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8
+
+PLANCK_H = 6.62607015e-34
+LIGHT_C = 2.99792458e8
+RGB_WAVELENGTHS_UM = (0.61, 0.55, 0.465)   # effective centres of the R, G, B channels
+RGB_CHANNEL_WIDTH_NM = 100.0               # Mitsuba radiance is per nm; each channel integrates ~100 nm
+OPTICS_TRANSMISSION = 0.9
+AUTO_EXPOSURE_KEY = 0.45                   # the renderer maps the sky in view to this fraction of white
+CAMERA_INDEX = {"rgb": 0, "thermal": 1}
+FPN_STREAM = 1
+NOISE_STREAM = 2
+AGC_PERCENTILE = 0.5
+POISSON_EXACT_BELOW_E = 1000.0
+
+
+# --- optics ---------------------------------------------------------------------------------------
+def optics_transfer(fx_per_um: np.ndarray, fy_per_um: np.ndarray, f_number: float, wavelength_um: float,
+                    defocus_blur_um: float) -> np.ndarray:
+    """Continuous transfer function of diffraction-limited optics with a circular pupil and a
+    uniform defocus blur circle (diameter defocus_blur_um), at spatial frequencies in cycles/um."""
+    from scipy.special import j1
+
+    rho = np.hypot(fx_per_um, fy_per_um)
+    s = np.clip(rho * wavelength_um * f_number, 0.0, 1.0)
+    diffraction = (2 / np.pi) * (np.arccos(s) - s * np.sqrt(1 - s ** 2))
+    if defocus_blur_um <= 0:
+        return diffraction
+    x = np.pi * defocus_blur_um * rho
+    defocus = np.where(x > 1e-9, 2 * j1(x) / np.where(x > 1e-9, x, 1.0), 1.0)
+    return diffraction * defocus
+
+
+@lru_cache(maxsize=16)
+def psf_kernel(pixel_pitch_um: float, f_number: float, wavelength_um: float, defocus_blur_um: float) -> np.ndarray:
+    """Discrete PSF: K[i, j] = energy of a point imaged at the centre of pixel (0, 0) that lands in
+    pixel (i, j) (optics PSF integrated over the pixel aperture). Odd square, sums to 1."""
+    radius_px = int(max(2, np.ceil(20 * wavelength_um * f_number / pixel_pitch_um),
+                        np.ceil(defocus_blur_um / pixel_pitch_um) + 2))
+    size_px = 2 * radius_px + 1
+    cutoff = 1.0 / (wavelength_um * f_number)                        # cycles/um
+    sub = int(max(8, np.ceil(4 * pixel_pitch_um * cutoff)))          # fine samples per pixel (> Nyquist)
+    sub = min(sub, max(8, 2048 // size_px))                           # bound the one-off FFT size
+    n = size_px * sub
+    f = np.fft.fftfreq(n, d=pixel_pitch_um / sub)
+    fx, fy = np.meshgrid(f, f)
+    h = optics_transfer(fx, fy, f_number, wavelength_um, defocus_blur_um)
+    h = h * np.sinc(fx * pixel_pitch_um) * np.sinc(fy * pixel_pitch_um)   # pixel aperture (box)
+    fine = np.real(np.fft.ifft2(h))                                   # (PSF * box)(x) on the fine grid, periodic
+    fine = np.fft.fftshift(fine) * sub * sub                          # density per pixel area
+    centre = n // 2
+    idx = centre + (np.arange(size_px) - radius_px) * sub
+    kernel = fine[np.ix_(idx, idx)]
+    return kernel / kernel.sum()
+
+
+class KernelFilter:
+    """Convolution of (H, W) images with a centred odd kernel by FFT (edges reflected); the
+    kernel's spectrum is computed once per image shape."""
+
+    def __init__(self, kernel: np.ndarray):
+        self.kernel = kernel
+        self.radius = kernel.shape[0] // 2
+        self._spectra: dict[tuple[int, int], np.ndarray] = {}
+
+    def __call__(self, image: np.ndarray) -> np.ndarray:
+        from scipy import fft
+
+        r = self.radius
+        h, w = image.shape
+        shape = (fft.next_fast_len(h + 2 * r, real=True), fft.next_fast_len(w + 2 * r, real=True))
+        padded = np.pad(image.astype(np.float32), ((r, shape[0] - h - r), (r, shape[1] - w - r)), mode="reflect")
+        if shape not in self._spectra:
+            self._spectra[shape] = fft.rfft2(self.kernel.astype(np.float32), s=shape)
+        out = fft.irfft2(fft.rfft2(padded) * self._spectra[shape], s=shape)
+        return out[2 * r:2 * r + h, 2 * r:2 * r + w]
+
+
+# --- motion ---------------------------------------------------------------------------------------
+def trail_weights(length_samples: int, kind: str, time_constant_s: float, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Sample times (fraction of the window back in time, 0..1) and normalised weights of the
+    integration window: 'box' (shutter) or 'exponential' (bolometer, exp(-s/tau) over window_s)."""
+    frac = (np.arange(length_samples) + 0.5) / length_samples
+    if kind == "box" or time_constant_s <= 0:
+        w = np.ones(length_samples)
+    else:
+        w = np.exp(-frac * window_s / time_constant_s)
+    return frac, w / w.sum()
+
+
+def blur_along(window: np.ndarray, displacement_px: np.ndarray, frac: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Sum of the window shifted back along its motion (displacement over the integration window)."""
+    from scipy.ndimage import shift
+
+    out = np.zeros_like(window, dtype=np.float64)
+    for f, w in zip(frac, weights):
+        dx, dy = -displacement_px * f
+        out += w * shift(window.astype(np.float64), (dy, dx), order=1, mode="nearest")
+    return out
+
+
+@dataclass
+class _Motion:
+    """Image-plane position (px) and displacement per frame period of every target, per camera."""
+
+    centre_px: np.ndarray      # (T, F, 2)
+    step_px: np.ndarray        # (T, F, 2): position(frame) - position(frame - 1)
+    half_size_px: np.ndarray   # (T, F)
+    in_front: np.ndarray       # (T, F) bool
+
+
+def _motion(timeline: Timeline, which: str) -> _Motion:
+    cam = timeline.cameras[which]
+    n = timeline.n_frames
+    centres, steps, sizes, front = [], [], [], []
+    for track in timeline.targets:
+        c = np.zeros((n, 2))
+        d = np.zeros(n)
+        for i in range(n):
+            xy, depth = cam.project(i, track.position_m[i])
+            c[i], d[i] = xy[0], depth[0]
+        step = np.zeros_like(c)
+        if n > 1:
+            step[1:] = c[1:] - c[:-1]
+            step[0] = step[1]
+        centres.append(c)
+        steps.append(step)
+        sizes.append(0.6 * track.size_m * cam.focal_px / np.maximum(d, 1e-6))
+        front.append(d > 0.5)
+    return _Motion(np.array(centres).reshape(-1, n, 2), np.array(steps).reshape(-1, n, 2),
+                   np.array(sizes).reshape(-1, n), np.array(front).reshape(-1, n))
+
+
+def motion_blur(image: np.ndarray, motion: _Motion, frame: int, fraction_of_frame: float, kind: str,
+                time_constant_s: float, frame_period_s: float, margin_px: int) -> np.ndarray:
+    """Blur each target's neighbourhood along its image motion over the integration window."""
+    out = image
+    h, w = image.shape[:2]
+    for t in range(motion.centre_px.shape[0]):
+        if not motion.in_front[t, frame]:
+            continue
+        disp = motion.step_px[t, frame] * fraction_of_frame
+        length = float(np.hypot(*disp))
+        if length < 0.25:
+            continue
+        cx, cy = motion.centre_px[t, frame]
+        reach = motion.half_size_px[t, frame] + length + margin_px
+        x0, x1 = int(max(0, np.floor(cx - reach))), int(min(w, np.ceil(cx + reach)))
+        y0, y1 = int(max(0, np.floor(cy - reach))), int(min(h, np.ceil(cy + reach)))
+        if x1 - x0 < 2 or y1 - y0 < 2:
+            continue
+        frac, weights = trail_weights(int(np.ceil(2 * length)) + 2, kind, time_constant_s,
+                                      fraction_of_frame * frame_period_s)
+        if out is image:
+            out = image.copy()
+        win = out[y0:y1, x0:x1]
+        if win.ndim == 3:
+            out[y0:y1, x0:x1] = np.stack([blur_along(win[..., c], disp, frac, weights) for c in range(win.shape[2])], -1)
+        else:
+            out[y0:y1, x0:x1] = blur_along(win, disp, frac, weights)
+    return out
+
+
+# --- AGC ------------------------------------------------------------------------------------------
+def agc(kelvin: np.ndarray, mode: str) -> np.ndarray:
+    """8-bit display view: linear min/max, linear between the 0.5/99.5 percentiles, or histogram
+    equalisation (the usual camera choices)."""
+    if mode == "minmax":
+        return agc_8bit(kelvin)[0]
+    if mode == "percentile":
+        lo, hi = np.percentile(kelvin, [AGC_PERCENTILE, 100 - AGC_PERCENTILE])
+        mid, span = 0.5 * (lo + hi), max(hi - lo, 0.5)
+        return np.clip(np.rint((kelvin - (mid - span / 2)) / span * 255.0), 0, 255).astype(np.uint8)
+    _, inverse, counts = np.unique(kelvin.ravel(), return_inverse=True, return_counts=True)
+    below = np.cumsum(counts) - counts                       # pixels colder than each level
+    scale = 255.0 / max(int(below[-1]), 1)
+    return np.rint(below[inverse] * scale).astype(np.uint8).reshape(kelvin.shape)
+
+
+def shot_noise(electrons: np.ndarray, rng: np.random.Generator, read_noise_e: float = 0.0) -> np.ndarray:
+    """Photo-electron counts with shot (Poisson) and read (Gaussian, rms read_noise_e) noise.
+
+    At or above POISSON_EXACT_BELOW_E electrons everywhere, one normal draw with variance
+    n + read^2 (the normal approximation of the Poisson term, skewness 1/sqrt(n) < 3 %, plus the
+    independent Gaussian read noise); otherwise exact Poisson draws and a separate read-noise draw.
+    """
+    lam = np.asarray(electrons, dtype=np.float32)
+    if float(lam.min()) >= POISSON_EXACT_BELOW_E:
+        out = rng.standard_normal(lam.shape, dtype=np.float32)
+        out *= np.sqrt(lam + np.float32(read_noise_e ** 2))
+        out += lam
+        return out
+    out = rng.poisson(np.minimum(lam, 1e12)).astype(np.float32)
+    if read_noise_e > 0:
+        out += np.float32(read_noise_e) * rng.standard_normal(lam.shape, dtype=np.float32)
+    return out
+
+
+# --- the cameras ----------------------------------------------------------------------------------
+@dataclass
+class RecordedFrame:
+    """What the cameras write for one frame."""
+
+    rgb8: np.ndarray            # (H, W, 3) uint8 sRGB
+    thermal_counts: np.ndarray  # (H, W) uint16 radiometric counts, T = counts * kelvin_per_count
+    thermal_agc8: np.ndarray    # (H, W) uint8
+    thermal_kelvin: np.ndarray  # (H, W) float32 recorded temperature (before quantisation)
+
+
+@dataclass
+class ThermalSensor:
+    """One uncooled LWIR camera over a sequence (keeps the bolometer state between frames)."""
+
+    params: ThermalCamera
+    timeline: Timeline
+    frame_period_s: float
+    nuc_reference_k: float
+    _state: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        p = self.params
+        self.kernel = psf_kernel(p.pixel_pitch_um, p.f_number, p.wavelength_um, p.defocus_blur_um)
+        self.optics = KernelFilter(self.kernel)
+        self.lag_alpha = 1.0 - float(np.exp(-self.frame_period_s / p.time_constant_s)) if p.time_constant_s > 0 else 1.0
+        self.motion = _motion(self.timeline, "thermal")
+        rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["thermal"], FPN_STREAM)
+        self.column_gain = (p.fpn_column_gain * rng.standard_normal(p.width_px)).astype(np.float64)
+        self.column_offset_k = (p.fpn_column_offset_k * rng.standard_normal(p.width_px)).astype(np.float64)
+        self._gain_row = (1.0 + self.column_gain[None, :]).astype(np.float32)
+        self._offset_row = (self.nuc_reference_k + self.column_offset_k[None, :]).astype(np.float32)
+
+    def detector_radiance(self, frame: int, radiance: np.ndarray) -> np.ndarray:
+        """Optics + in-frame motion + bolometer lag, in W sr^-1 m^-2 (no noise)."""
+        x = self.optics(radiance)
+        if self.params.time_constant_s > 0:
+            x = motion_blur(x, self.motion, frame, 1.0, "exponential", self.params.time_constant_s,
+                            self.frame_period_s, self.kernel.shape[0] // 2)
+        if self._state is None:
+            self._state = x
+        else:
+            self._state = self.lag_alpha * x + (1.0 - self.lag_alpha) * self._state
+        return self._state
+
+    def record(self, frame: int, radiance: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Radiance -> (recorded kelvin float32, counts uint16, AGC uint8)."""
+        p = self.params
+        kelvin = radiometry.brightness_temperature(self.detector_radiance(frame, radiance)).astype(np.float32)
+        ref = np.float32(self.nuc_reference_k)
+        kelvin -= ref
+        kelvin *= self._gain_row
+        kelvin += self._offset_row
+        rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["thermal"], NOISE_STREAM, frame)
+        kelvin += np.float32(p.netd_k) * rng.standard_normal(kelvin.shape, dtype=np.float32)
+        counts = np.clip(np.rint(kelvin / p.kelvin_per_count), 0, 2 ** p.adc_bits - 1).astype(np.uint16)
+        shown = counts.astype(np.float32) * np.float32(p.kelvin_per_count)
+        return kelvin, counts, agc(shown, p.agc)
+
+    def metadata(self) -> dict:
+        p = self.params
+        return {"model": "uncooled microbolometer", **p.model_dump(mode="json"),
+                "psf_centre_pixel_fraction": round(float(self.kernel[self.kernel.shape[0] // 2, self.kernel.shape[1] // 2]), 6),
+                "psf_kernel_px": int(self.kernel.shape[0]), "lag_alpha_per_frame": round(self.lag_alpha, 6),
+                "nuc_reference_k": self.nuc_reference_k,
+                "focal_length_mm": round(self.timeline.cameras["thermal"].focal_px * p.pixel_pitch_um / 1000, 6)}
+
+
+@dataclass
+class RgbSensor:
+    """One visible CMOS camera over a sequence."""
+
+    params: RgbCamera
+    timeline: Timeline
+    frame_period_s: float
+    render_exposure: float   # the renderer's scale: rgb_linear = radiance * render_exposure
+
+    def __post_init__(self) -> None:
+        p = self.params
+        self.pixel_pitch_um = p.sensor_width_mm * 1000.0 / p.width_px
+        self.kernels = [psf_kernel(self.pixel_pitch_um, p.f_number, wl, p.defocus_blur_um) for wl in RGB_WAVELENGTHS_UM]
+        self.optics = [KernelFilter(k) for k in self.kernels]
+        self.bin_area = (self.pixel_pitch_um / p.native_pixel_pitch_um) ** 2
+        self.full_well_e = p.full_well_e * self.bin_area
+        self.read_noise_e = p.read_noise_e * np.sqrt(self.bin_area)
+        rate_key = self.electrons_per_s_per_native_pixel(AUTO_EXPOSURE_KEY / max(self.render_exposure, 1e-30))
+        needed_s = AUTO_EXPOSURE_KEY * p.full_well_e / max(rate_key, 1e-30)   # key -> 45 % of full well
+        if p.exposure_time_s is None:
+            self.exposure_time_s = min(needed_s, self.frame_period_s)
+            self.gain = float(min(needed_s / self.exposure_time_s, p.max_gain))
+        else:
+            self.exposure_time_s, self.gain = float(p.exposure_time_s), 1.0
+        # photo-electrons in one output pixel per unit of the renderer's exposed linear value
+        self.electrons_per_unit = (self.electrons_per_s_per_native_pixel(1.0 / max(self.render_exposure, 1e-30))
+                                   * self.exposure_time_s * self.bin_area)
+        self.needed_exposure_s = float(needed_s)
+        self.motion = _motion(self.timeline, "rgb")
+
+    def electrons_per_s_per_native_pixel(self, radiance_per_nm: float) -> float:
+        """Photo-electron rate of a native pixel looking at a scene of this spectral radiance
+        (W m^-2 sr^-1 nm^-1, Mitsuba's unit) through the lens: E = L pi / (4 N^2) at the focal plane."""
+        p = self.params
+        band = radiance_per_nm * RGB_CHANNEL_WIDTH_NM
+        irradiance = band * np.pi / (4 * p.f_number ** 2) * OPTICS_TRANSMISSION
+        power = irradiance * (p.native_pixel_pitch_um * 1e-6) ** 2
+        photon_j = PLANCK_H * LIGHT_C / (RGB_WAVELENGTHS_UM[1] * 1e-6)
+        return float(power / photon_j * p.quantum_efficiency)
+
+    def record(self, frame: int, rgb_linear: np.ndarray) -> np.ndarray:
+        p = self.params
+        x = np.empty(rgb_linear.shape, np.float32)
+        for c in range(3):
+            x[..., c] = self.optics[c](rgb_linear[..., c])
+        x = motion_blur(x, self.motion, frame, self.exposure_time_s / self.frame_period_s, "box", 0.0,
+                        self.frame_period_s, self.kernels[0].shape[0] // 2)
+        electrons = np.maximum(x, np.float32(0.0), dtype=np.float32)
+        electrons *= np.float32(self.electrons_per_unit)
+        rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["rgb"], NOISE_STREAM, frame)
+        noisy = shot_noise(electrons, rng, self.read_noise_e)
+        levels = 2 ** p.adc_bits - 1
+        noisy *= np.float32(levels / self.full_well_e)
+        np.clip(noisy, 0.0, levels, out=noisy)
+        noisy += np.float32(0.5)
+        return self.srgb_lut[noisy.astype(np.int32)]   # ADC level (rounded) -> sRGB 8-bit
+
+    @property
+    def srgb_lut(self) -> np.ndarray:
+        """sRGB 8-bit value of every ADC level (value = DN / levels x gain, 1.0 = white)."""
+        if getattr(self, "_lut", None) is None:
+            levels = 2 ** self.params.adc_bits - 1
+            self._lut = rgb_to_srgb8((np.arange(levels + 1) * (self.gain / levels)).astype(np.float32))
+        return self._lut
+
+    def metadata(self) -> dict:
+        p = self.params
+        return {"model": "CMOS, output pixel = mean of native pixels", **p.model_dump(mode="json"),
+                "output_pixel_pitch_um": round(self.pixel_pitch_um, 6),
+                "focal_length_mm": round(self.timeline.cameras["rgb"].focal_px * self.pixel_pitch_um / 1000, 6),
+                "exposure_time_s_used": round(self.exposure_time_s, 9), "gain": round(self.gain, 6),
+                "auto_exposure_needed_s": round(self.needed_exposure_s, 9),
+                "full_well_e_output_pixel": round(self.full_well_e, 3), "read_noise_e_output_pixel": round(self.read_noise_e, 4),
+                "electrons_at_white": round(self.electrons_per_unit, 3),
+                "psf_centre_pixel_fraction": [round(float(k[k.shape[0] // 2, k.shape[1] // 2]), 6) for k in self.kernels]}
+
+
+class CameraModel:
+    """Both cameras of a rig over one sequence: ``record(frame, buffers)`` -> RecordedFrame.
+
+    With ``camera_rig.sensor == 'ideal'`` it reproduces the plain encodings of the rendered buffers."""
+
+    def __init__(self, timeline: Timeline, render_exposure: float):
+        scenario = timeline.scenario
+        rig = scenario.camera_rig
+        self.ideal = rig.sensor == "ideal"
+        self.rig = rig
+        period = 1.0 / scenario.frame_rate_hz
+        if not self.ideal:
+            self.rgb = RgbSensor(rig.rgb, timeline, period, render_exposure)
+            self.thermal = ThermalSensor(rig.thermal, timeline, period, scenario.atmosphere.air_temperature_k)
+
+    def record(self, frame: int, rgb_linear: np.ndarray, thermal_radiance: np.ndarray,
+               thermal_kelvin: np.ndarray) -> RecordedFrame:
+        """The recorded frames of one rendered frame (radiance in, file-ready arrays out)."""
+        kpc = self.rig.thermal.kelvin_per_count
+        if self.ideal:
+            counts = kelvin_to_counts(thermal_kelvin, kpc)
+            return RecordedFrame(rgb_to_srgb8(rgb_linear), counts, agc_8bit(thermal_kelvin)[0], thermal_kelvin)
+        kelvin, counts, shown = self.thermal.record(frame, thermal_radiance)
+        return RecordedFrame(self.rgb.record(frame, rgb_linear), counts, shown, kelvin)
+
+    def record_buffers(self, frame: int, buffers) -> RecordedFrame:
+        """``record`` for any object with rgb_linear, thermal_radiance and thermal_kelvin (FrameBuffers)."""
+        return self.record(frame, buffers.rgb_linear, buffers.thermal_radiance, buffers.thermal_kelvin)
+
+    def metadata(self) -> dict:
+        if self.ideal:
+            return {"sensor": "ideal"}
+        return {"sensor": "camera", "rgb": self.rgb.metadata(), "thermal": self.thermal.metadata()}

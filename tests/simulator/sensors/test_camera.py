@@ -1,0 +1,220 @@
+"""The camera model: optics, bolometer, noise, quantisation, determinism (no renderer needed)."""
+import numpy as np
+import pytest
+from pydantic import ValidationError
+from scipy.integrate import dblquad
+from scipy.special import j1
+
+from scenes import load_scenario
+from scenes.schema import ThermalCamera
+from simulator.physics import thermal
+from simulator.physics.timeline import build_timeline
+from simulator.sensors import camera as cam
+from simulator.sensors.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8
+
+
+def _timeline(w=64, h=48, frames=4, seed=5, **thermal_updates):
+    s = load_scenario("clear_day_quad")
+    rig = s.camera_rig
+    rig = rig.model_copy(update={
+        "rgb": rig.rgb.model_copy(update={"width_px": w, "height_px": h}),
+        "thermal": rig.thermal.model_copy(update={"width_px": w, "height_px": h, **thermal_updates})})
+    s = s.model_copy(update={"camera_rig": rig, "duration_s": frames / s.frame_rate_hz})
+    return build_timeline(s, seed)
+
+
+def _airy_square_fraction(pitch_um, f_number, wavelength_um):
+    """Energy of an Airy pattern (point at a pixel centre) inside that square pixel."""
+    scale = wavelength_um * f_number
+
+    def airy(y, x):
+        v = np.pi * np.hypot(x, y) / scale
+        return (2 * j1(v) / v) ** 2 if v > 1e-12 else 1.0
+
+    total = 4.0 * scale ** 2 / np.pi
+    half = pitch_um / 2
+    return dblquad(airy, -half, half, -half, half, epsabs=1e-9)[0] / total
+
+
+@pytest.mark.parametrize("pitch,f_number,wavelength", [(12.0, 1.0, 10.0), (17.0, 1.2, 10.0), (12.0, 1.0, 8.0)])
+def test_psf_pixel_energy_matches_the_airy_integral(pitch, f_number, wavelength):
+    kernel = cam.psf_kernel(pitch, f_number, wavelength, 0.0)
+    centre = kernel[kernel.shape[0] // 2, kernel.shape[1] // 2]
+    assert centre == pytest.approx(_airy_square_fraction(pitch, f_number, wavelength), abs=0.004)
+    assert kernel.sum() == pytest.approx(1.0)
+    assert np.allclose(kernel, kernel.T) and np.allclose(kernel, kernel[::-1, ::-1])
+
+
+def test_lwir_default_keeps_about_two_thirds_of_a_point_in_its_pixel():
+    kernel = cam.psf_kernel(12.0, 1.0, 10.0, 0.0)
+    assert 0.6 < kernel[kernel.shape[0] // 2, kernel.shape[1] // 2] < 0.66
+
+
+def test_defocus_spreads_the_psf_and_a_large_blur_circle_is_a_uniform_disk():
+    sharp = cam.psf_kernel(12.0, 1.0, 10.0, 0.0)
+    soft = cam.psf_kernel(12.0, 1.0, 10.0, 24.0)
+    c = sharp.shape[0] // 2
+    assert soft[soft.shape[0] // 2, soft.shape[0] // 2] < sharp[c, c] - 0.2
+    disk = cam.psf_kernel(12.0, 1.0, 10.0, 240.0)   # blur circle radius 10 px >> diffraction
+    cd = disk.shape[0] // 2
+    inner = disk[cd - 5:cd + 6, cd - 5:cd + 6]
+    assert inner.std() / inner.mean() < 0.05
+    assert disk[cd, cd] == pytest.approx(1.0 / (np.pi * 10.0 ** 2), rel=0.05)
+
+
+def test_kernel_filter_conserves_a_flat_image_and_energy():
+    f = cam.KernelFilter(cam.psf_kernel(12.0, 1.0, 10.0, 0.0))
+    flat = np.full((40, 50), 7.0)
+    assert np.allclose(f(flat), 7.0, atol=1e-4)
+    point = np.zeros((60, 60))
+    point[30, 30] = 1.0
+    out = f(point)
+    assert out.sum() == pytest.approx(1.0, abs=1e-4)
+    assert out[30, 30] == pytest.approx(f.kernel[f.radius, f.radius], abs=1e-5)
+
+
+def _flat_thermal(tl, temp_k=300.0):
+    p = tl.scenario.camera_rig.thermal
+    return np.full((p.height_px, p.width_px), float(thermal.band_radiance(temp_k)), np.float32)
+
+
+def test_netd_noise_std_on_a_flat_scene():
+    tl = _timeline(w=256, h=200, fpn_column_offset_k=0.0, fpn_column_gain=0.0, netd_k=0.04)
+    sensor = cam.ThermalSensor(tl.scenario.camera_rig.thermal, tl, 1 / 30, 288.0)
+    kelvin, counts, _ = sensor.record(0, _flat_thermal(tl))
+    assert kelvin.mean() == pytest.approx(300.0, abs=0.01)
+    assert kelvin.std() == pytest.approx(0.04, rel=0.03)
+    assert (counts.astype(float) * 0.01).std() == pytest.approx(0.04, rel=0.05)
+
+
+def test_fixed_pattern_is_per_column_and_fixed_over_frames():
+    tl = _timeline(w=200, h=150, netd_k=0.01, fpn_column_offset_k=0.2, fpn_column_gain=0.0)
+    sensor = cam.ThermalSensor(tl.scenario.camera_rig.thermal, tl, 1 / 30, 288.0)
+    a, _, _ = sensor.record(0, _flat_thermal(tl))
+    b, _, _ = sensor.record(1, _flat_thermal(tl))
+    cols_a, cols_b = a.mean(axis=0) - 300.0, b.mean(axis=0) - 300.0
+    assert cols_a.std() == pytest.approx(0.2, rel=0.15)
+    assert np.corrcoef(cols_a, cols_b)[0, 1] > 0.99          # same pattern in both frames
+    assert a.std(axis=0).mean() == pytest.approx(0.01, rel=0.1)   # rows: only temporal noise
+    assert not np.array_equal(a, b)
+
+
+def test_column_gain_acts_about_the_nuc_reference():
+    tl = _timeline(w=200, h=20, netd_k=1e-6, fpn_column_offset_k=0.0, fpn_column_gain=0.05)
+    sensor = cam.ThermalSensor(tl.scenario.camera_rig.thermal, tl, 1 / 30, 300.0)
+    at_ref, _, _ = sensor.record(0, _flat_thermal(tl, 300.0))
+    assert np.abs(at_ref - 300.0).max() < 1e-3
+    sensor2 = cam.ThermalSensor(tl.scenario.camera_rig.thermal, tl, 1 / 30, 300.0)
+    cold, _, _ = sensor2.record(0, _flat_thermal(tl, 260.0))
+    assert (cold.mean(axis=0) - 260.0).std() == pytest.approx(40 * 0.05, rel=0.2)
+
+
+def test_bolometer_lag_is_first_order():
+    tl = _timeline(w=32, h=24, frames=8)
+    p = tl.scenario.camera_rig.thermal
+    sensor = cam.ThermalSensor(p, tl, 1 / 100, 288.0)   # 10 ms frames, tau 10 ms
+    low, high = _flat_thermal(tl, 280.0).astype(np.float64), _flat_thermal(tl, 320.0).astype(np.float64)
+    sensor.detector_radiance(0, low)
+    a = 1 - np.exp(-1.0)
+    assert sensor.lag_alpha == pytest.approx(a)
+    for n in range(1, 4):
+        y = sensor.detector_radiance(n, high)
+        expected = high[0, 0] - (high[0, 0] - low[0, 0]) * (1 - a) ** n
+        assert y[12, 16] == pytest.approx(expected, rel=1e-4)
+
+
+def test_motion_blur_spreads_a_point_along_its_motion_and_keeps_its_energy():
+    img = np.zeros((40, 60))
+    img[20, 20] = 1.0
+    motion = cam._Motion(centre_px=np.array([[[20.5, 20.5]]]), step_px=np.array([[[10.0, 0.0]]]),
+                         half_size_px=np.array([[1.0]]), in_front=np.array([[True]]))
+    box = cam.motion_blur(img, motion, 0, 1.0, "box", 0.0, 1 / 30, 2)
+    assert box.sum() == pytest.approx(1.0)
+    row = box[20]
+    assert np.count_nonzero(row > 1e-3) >= 10 and row[10:21].sum() > 0.99  # trail runs back (to smaller x)
+    assert np.allclose(box[[19, 21]], 0)
+    expo = cam.motion_blur(img, motion, 0, 1.0, "exponential", 0.010, 1 / 30, 2)
+    assert expo.sum() == pytest.approx(1.0)
+    assert expo[20, 19] > expo[20, 14] > expo[20, 11]       # newest positions weigh most
+
+
+def test_rgb_shot_and_read_noise_follow_the_electron_count():
+    tl = _timeline(w=200, h=160)
+    p = tl.scenario.camera_rig.rgb
+    sensor = cam.RgbSensor(p, tl, 1 / 30, render_exposure=1.0)
+    lam = np.full((160, 200), 400.0)
+    rng = np.random.default_rng(0)
+    shot = cam.shot_noise(lam, rng)
+    assert shot.mean() == pytest.approx(400.0, rel=0.01) and shot.var() == pytest.approx(400.0, rel=0.05)
+    big = cam.shot_noise(np.full((160, 200), 1e5), rng)
+    assert big.var() == pytest.approx(1e5, rel=0.05)
+    with_read = cam.shot_noise(np.full((160, 200), 1e4), rng, read_noise_e=50.0)
+    assert with_read.var() == pytest.approx(1e4 + 2500.0, rel=0.05)
+    dark = cam.shot_noise(np.full((160, 200), 20.0), rng, read_noise_e=3.0)
+    assert dark.mean() == pytest.approx(20.0, abs=0.2) and dark.var() == pytest.approx(29.0, rel=0.06)
+    assert sensor.full_well_e == pytest.approx(p.full_well_e * (p.sensor_width_mm * 1000 / 200 / p.native_pixel_pitch_um) ** 2)
+
+
+def test_rgb_auto_exposure_caps_at_the_frame_period_and_raises_gain_in_the_dark():
+    tl = _timeline(w=64, h=48)
+    p = tl.scenario.camera_rig.rgb
+    day = cam.RgbSensor(p, tl, 1 / 30, render_exposure=5.0)        # key radiance 0.09 W m^-2 sr^-1 nm^-1
+    dusk = cam.RgbSensor(p, tl, 1 / 30, render_exposure=5e3)
+    assert day.exposure_time_s < 1 / 30 and day.gain == 1.0
+    assert dusk.exposure_time_s == pytest.approx(1 / 30) and dusk.gain > 1.0
+    flat = np.full((48, 64, 3), 0.45, np.float32)
+    noisy_day = day.record(0, flat).astype(float).std()
+    noisy_dusk = dusk.record(0, flat).astype(float).std()
+    assert noisy_dusk > noisy_day
+
+
+def test_record_is_deterministic_per_seed_and_frame():
+    def run(seed):
+        tl = _timeline(seed=seed)
+        model = cam.CameraModel(tl, render_exposure=30.0)
+        rgb = np.full((48, 64, 3), 0.3, np.float32)
+        rec = [model.record(i, rgb, _flat_thermal(tl), np.full((48, 64), 300.0, np.float32)) for i in range(2)]
+        return [(r.rgb8.tobytes(), r.thermal_counts.tobytes(), r.thermal_agc8.tobytes()) for r in rec]
+
+    a, b, c = run(1), run(1), run(2)
+    assert a == b
+    assert a != c
+    assert a[0][1] != a[1][1]          # fresh temporal noise every frame
+
+
+def test_ideal_sensor_is_the_plain_encoding():
+    s = load_scenario("clear_day_quad")
+    s = s.model_copy(update={"camera_rig": s.camera_rig.model_copy(update={"sensor": "ideal"})})
+    tl = build_timeline(s, 0, 1)
+    model = cam.CameraModel(tl, 1.0)
+    rgb = np.random.default_rng(0).uniform(0, 1, (8, 9, 3)).astype(np.float32)
+    kelvin = np.random.default_rng(1).uniform(250, 300, (8, 9)).astype(np.float32)
+    rec = model.record(0, rgb, thermal.band_radiance(kelvin), kelvin)
+    assert np.array_equal(rec.rgb8, rgb_to_srgb8(rgb))
+    assert np.array_equal(rec.thermal_counts, kelvin_to_counts(kelvin, 0.01))
+    assert np.array_equal(rec.thermal_agc8, agc_8bit(kelvin)[0])
+    assert model.metadata() == {"sensor": "ideal"}
+
+
+def test_metadata_records_every_sensor_parameter():
+    tl = _timeline()
+    meta = cam.CameraModel(tl, 10.0).metadata()
+    for field in ThermalCamera.model_fields:
+        assert field in meta["thermal"]
+    for field in type(tl.scenario.camera_rig.rgb).model_fields:
+        assert field in meta["rgb"]
+    assert 0.6 < meta["thermal"]["psf_centre_pixel_fraction"] < 0.66
+
+
+def test_14_bit_counts_clip_and_need_a_coarse_enough_scale():
+    with pytest.raises(ValidationError, match="kelvin_per_count"):
+        ThermalCamera(adc_bits=14, kelvin_per_count=0.01)
+    ThermalCamera(adc_bits=14, kelvin_per_count=0.04)
+
+
+@pytest.mark.parametrize("mode", ["minmax", "percentile", "histogram"])
+def test_agc_modes_span_the_8_bit_range(mode):
+    k = np.random.default_rng(0).normal(280, 3, (50, 60)).astype(np.float32)
+    out = cam.agc(k, mode)
+    assert out.dtype == np.uint8 and out.min() == 0 and out.max() == 255
+    assert np.all(np.diff(out.ravel()[np.argsort(k.ravel())].astype(int)) >= 0)   # monotonic in temperature
