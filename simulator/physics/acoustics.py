@@ -36,10 +36,28 @@ N_BLADE_HARMONICS = 10
 MULTIROTOR_KINDS = ("quadcopter", "hexacopter")
 DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
 
-# source levels at 1 m (dB SPL) for the reference size; see docs/AUDIO_RF.md
+# relative source levels at 1 m (dB SPL, unweighted) for the reference size: they fix the tonal /
+# broadband balance; the absolute level comes from the sound power (sound_power_dba); docs/AUDIO_RF.md
 _TONAL_DB_1M = {"quadcopter": 78.0, "hexacopter": 81.0, "fixed_wing": 80.0}
 _BROADBAND_DB_1M = {"quadcopter": 72.0, "hexacopter": 75.0, "fixed_wing": 74.0}
 _REFERENCE_SIZE_M = {"quadcopter": 0.45, "hexacopter": 0.8, "fixed_wing": 1.5}
+BROADBAND_SHAPE = (300.0, 6000.0, -3.0)   # rotor broadband: band edges (Hz) and tilt (dB/octave)
+BPF_MODULATION = 0.3                      # broadband amplitude modulation at the blade-passing frequency
+SPHERE_DB = 10.0 * np.log10(4.0 * np.pi)  # L_p(1 m) = L_W - 10.99 dB in free field (sphere of 1 m^2 x 4 pi)
+# mass from overall span (kg): multirotor 0.75 kg at 0.45 m (a C1-class folding quad), fixed wing 1.2 kg at 1.5 m
+_MASS_REFERENCE = {"quadcopter": (0.45, 0.75), "hexacopter": (0.45, 0.75), "fixed_wing": (1.5, 1.2)}
+# EU 2019/945 Part 15: max L_WA (dB) for C1 and C2 below 900 g, by time since entry into force (0, 2, 4 years);
+# C2 from 900 g to 4 kg: limit + 18.5 lg(m / 900 g). None above 4 kg (not in the open-category classes).
+EU_LWA_LIMIT_DB = (85.0, 83.0, 81.0)
+EU_C2_SLOPE_DB = 18.5
+SOUND_POWER_PHASE = 1                     # default level: the 2-year curve 83 + 18.5 lg(m / 0.9 kg)
+# directivity about the body's up axis, phi = angle below the rotor plane; power shapes (normalised to a
+# unit sphere average): tonal 0.35 + sin^2(2 phi) (lobes ~45 deg off the rotor plane), broadband 1 + 0.5 sin^2 phi
+TONAL_DIRECTIVITY = (0.35, 1.0)
+BROADBAND_DIRECTIVITY = (1.0, 0.5)
+GEOMETRY_STEP = 64                        # samples between evaluations of emission geometry (1.5 ms)
+DEFAULT_GROUND_FACTOR = 0.5               # ISO 9613-2 G of a mixed site (grass and hard surfaces)
+OCTAVE_BANDS_HZ = (63.0, 125.0, 250.0, 500.0, 1000.0, 2000.0, 4000.0, 8000.0)
 BIRD_CALL_DB_1M = 80.0
 BIRD_WINGBEAT_DB_1M = 55.0
 AIRLINER_DB_1M = 140.0
@@ -101,6 +119,109 @@ def iso9613_absorption_db_per_m(frequency_hz: np.ndarray | float, air_temperatur
         1.84e-11 / pa_rel * (t / t0) ** 0.5
         + (t / t0) ** -2.5 * (0.01275 * np.exp(-2239.1 / t) / (fr_o + f ** 2 / fr_o)
                               + 0.1068 * np.exp(-3352.0 / t) / (fr_n + f ** 2 / fr_n)))
+
+
+def a_weighting_db(frequency_hz: np.ndarray | float) -> np.ndarray:
+    """IEC 61672-1 A-weighting (dB): 20 lg R_A(f) + 2.00, R_A = 12194^2 f^4 / ((f^2 + 20.6^2)
+    sqrt((f^2 + 107.7^2)(f^2 + 737.9^2)) (f^2 + 12194^2))."""
+    f2 = np.asarray(frequency_hz, dtype=np.float64) ** 2
+    ra = 12194.0 ** 2 * f2 ** 2 / ((f2 + 20.6 ** 2) * np.sqrt((f2 + 107.7 ** 2) * (f2 + 737.9 ** 2)) * (f2 + 12194.0 ** 2))
+    return 20.0 * np.log10(np.maximum(ra, 1e-30)) + 2.00
+
+
+def drone_mass_kg(kind: str, size_m: float) -> float:
+    """Take-off mass from overall span, m ~ span^3 (0.75 kg at 0.45 m for multirotors, 1.2 kg at 1.5 m wings)."""
+    if kind not in _MASS_REFERENCE:
+        raise ValueError(f"kind: no mass model for {kind!r}")
+    span, mass = _MASS_REFERENCE[kind]
+    return mass * (size_m / span) ** 3
+
+
+def eu_class(mass_kg: float) -> str:
+    """EU 2019/945 open-category class by mass alone: C0 < 250 g, C1 < 900 g, C2 < 4 kg, else 'none'."""
+    return "C0" if mass_kg < 0.25 else "C1" if mass_kg < 0.9 else "C2" if mass_kg < 4.0 else "none"
+
+
+def eu_sound_power_limit_db(mass_kg: float, phase: int = 0) -> float | None:
+    """Maximum L_WA of EU 2019/945 Part 15 (C1/C2), ``phase`` 0/1/2 = at entry, +2 years, +4 years.
+
+    85/83/81 dB below 900 g (C1 and C2), + 18.5 lg(m / 900 g) from 900 g to 4 kg; None for C0 (no
+    limit) and above 4 kg.
+    """
+    if phase not in (0, 1, 2):
+        raise ValueError(f"phase must be 0, 1 or 2, got {phase}")
+    cls = eu_class(mass_kg)
+    if cls in ("C0", "none"):
+        return None
+    base = EU_LWA_LIMIT_DB[phase]
+    return base if mass_kg < 0.9 else base + EU_C2_SLOPE_DB * np.log10(mass_kg / 0.9)
+
+
+def sound_power_dba(kind: str, size_m: float) -> float:
+    """Default A-weighted sound power L_WA at hover: 83 + 18.5 lg(m / 0.9 kg) (the EU 2-year limit
+    curve extended to all masses), never above the class limit at entry into force."""
+    mass = drone_mass_kg(kind, size_m)
+    level = EU_LWA_LIMIT_DB[SOUND_POWER_PHASE] + EU_C2_SLOPE_DB * np.log10(mass / 0.9)
+    cap = eu_sound_power_limit_db(mass, 0)
+    return float(level if cap is None else min(level, cap))
+
+
+def _directivity_power(sin_below: np.ndarray, shape: tuple[float, float], kind: str) -> np.ndarray:
+    """Power directivity (unit sphere average) from sin(angle below the rotor plane)."""
+    base, depth = shape
+    u2 = np.clip(np.asarray(sin_below, dtype=np.float64) ** 2, 0.0, 1.0)
+    if kind == "tonal":                        # base + depth sin^2(2 phi); sphere mean of sin^2(2 phi) = 8/15
+        return (base + depth * 4.0 * u2 * (1.0 - u2)) / (base + depth * 8.0 / 15.0)
+    return (base + depth * u2) / (base + depth / 3.0)   # sphere mean of sin^2 phi = 1/3
+
+
+def rotor_directivity(emission_dir: np.ndarray, body_up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Amplitude factors (tonal, broadband) for unit emission directions (N, 3) and body up axes (N, 3)."""
+    d = np.asarray(emission_dir, dtype=np.float64)
+    d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
+    sin_below = -np.sum(d * np.asarray(body_up, dtype=np.float64), axis=-1)
+    return (np.sqrt(_directivity_power(sin_below, TONAL_DIRECTIVITY, "tonal")),
+            np.sqrt(_directivity_power(sin_below, BROADBAND_DIRECTIVITY, "broadband")))
+
+
+def iso9613_ground_attenuation_db(source_height_m: np.ndarray | float, receiver_height_m: float,
+                                  horizontal_range_m: np.ndarray | float, ground_factor: float) -> np.ndarray:
+    """ISO 9613-2:1996 ground attenuation A_gr = A_s + A_r + A_m (dB) per octave band 63 Hz-8 kHz.
+
+    Table 3: source/receiver regions -1.5 (63 Hz), -1.5 + G a'(h) / b'(h) / c'(h) / d'(h) (125 Hz
+    -1 kHz), -1.5 (1 - G) (2-8 kHz); middle region -3q (63 Hz), -3q (1 - G) otherwise, q = 0 for
+    d_p <= 30 (h_s + h_r) else 1 - 30 (h_s + h_r) / d_p. One G for all three regions. Negative =
+    gain (a hard ground adds the reflection: -3 dB). Returns (..., 8).
+    """
+    if not 0.0 <= ground_factor <= 1.0:
+        raise ValueError(f"ground_factor must be in [0, 1], got {ground_factor}")
+    hs = np.maximum(np.asarray(source_height_m, dtype=np.float64), 0.0)
+    dp = np.maximum(np.asarray(horizontal_range_m, dtype=np.float64), 0.0)
+    hs, dp = np.broadcast_arrays(hs, dp)
+    hr = max(float(receiver_height_m), 0.0)
+    g = float(ground_factor)
+    near = 1.0 - np.exp(-dp / 50.0)
+
+    def region(h):
+        a = 1.5 + 3.0 * np.exp(-0.12 * (h - 5.0) ** 2) * near + 5.7 * np.exp(-0.09 * h ** 2) * (1 - np.exp(-2.8e-6 * dp ** 2))
+        b = 1.5 + 8.6 * np.exp(-0.09 * h ** 2) * near
+        c = 1.5 + 14.0 * np.exp(-0.46 * h ** 2) * near
+        d = 1.5 + 5.0 * np.exp(-0.9 * h ** 2) * near
+        hi = np.full_like(h, -1.5 * (1 - g))
+        return np.stack([np.full_like(h, -1.5), -1.5 + g * a, -1.5 + g * b, -1.5 + g * c, -1.5 + g * d, hi, hi, hi], -1)
+
+    q = np.where(dp <= 30.0 * (hs + hr), 0.0, 1.0 - 30.0 * (hs + hr) / np.maximum(dp, 1e-9))
+    middle = np.stack([-3.0 * q] + [-3.0 * q * (1 - g)] * 7, -1)
+    return region(hs) + region(np.full_like(hs, hr)) + middle
+
+
+def _octave_interp(freqs_hz: np.ndarray, band_values: np.ndarray) -> np.ndarray:
+    """Per-frequency values from octave-band values (..., 8), linear in log f, held beyond the ends."""
+    x = np.log2(np.maximum(freqs_hz, 1.0) / 1000.0)
+    xp = np.log2(np.asarray(OCTAVE_BANDS_HZ) / 1000.0)
+    flat = band_values.reshape(-1, band_values.shape[-1])
+    out = np.stack([np.interp(x, xp, row) for row in flat])
+    return out.reshape(*band_values.shape[:-1], freqs_hz.size)
 
 
 # --------------------------------------------------------------------------------------------
@@ -168,9 +289,12 @@ def retarded_time(rx_times_s: np.ndarray, frame_times_s: np.ndarray, source_posi
 
 
 def _absorption_filter(x: np.ndarray, range_m: np.ndarray, sample_rate_hz: float,
-                       air_temperature_k: float, relative_humidity: float) -> np.ndarray:
-    """Time-varying ISO 9613-1 absorption: per-STFT-frame gain 10^(-alpha(f) r / 20).
+                       air_temperature_k: float, relative_humidity: float,
+                       ground: tuple[np.ndarray, float, np.ndarray, float] | None = None) -> np.ndarray:
+    """Time-varying ISO 9613-1 absorption (and ISO 9613-2 ground effect): per-STFT-frame gain
+    10^(-(alpha(f) r + A_gr(f)) / 20).
 
+    ``ground`` = (source height per sample, receiver height, horizontal range per sample, G).
     sqrt-Hann analysis and synthesis windows at 50 % overlap reconstruct exactly with unit gain.
     """
     n = x.size
@@ -182,7 +306,11 @@ def _absorption_filter(x: np.ndarray, range_m: np.ndarray, sample_rate_hz: float
     freqs = np.fft.rfftfreq(frame, 1.0 / sample_rate_hz)
     alpha = iso9613_absorption_db_per_m(freqs, air_temperature_k, relative_humidity)
     centre = np.clip(np.arange(frames.shape[0]) * hop + frame // 2 - frame, 0, n - 1)
-    gain = 10.0 ** (-np.outer(range_m[centre], alpha) / 20.0)
+    loss_db = np.outer(range_m[centre], alpha)
+    if ground is not None:
+        hs, hr, dp, g = ground
+        loss_db += _octave_interp(freqs, iso9613_ground_attenuation_db(hs[centre], hr, dp[centre], g))
+    gain = 10.0 ** (-loss_db / 20.0)
     out_frames = sfft.irfft(spec * gain, n=frame, axis=-1) * window
     total = np.zeros(padded.size, dtype=np.float64)
     blocks = total.reshape(-1, hop)
@@ -192,8 +320,12 @@ def _absorption_filter(x: np.ndarray, range_m: np.ndarray, sample_rate_hz: float
 
 
 def propagate(source_at_1m_pa: np.ndarray, range_m: np.ndarray, sample_rate_hz: float,
-              air_temperature_k: float, relative_humidity: float) -> np.ndarray:
-    """Spherical spreading (1/r re 1 m, range clamped to >= 1 m) and ISO 9613-1 absorption.
+              air_temperature_k: float, relative_humidity: float, *, ground_factor: float | None = None,
+              source_height_m: np.ndarray | None = None, receiver_height_m: float = 1.5,
+              horizontal_range_m: np.ndarray | None = None) -> np.ndarray:
+    """Spherical spreading (1/r re 1 m, range clamped to >= 1 m), ISO 9613-1 absorption and, when
+    ``ground_factor`` is given, the ISO 9613-2 ground attenuation for the per-sample source height
+    and horizontal range (receiver height fixed).
 
     ``source_at_1m_pa`` is already on the microphone clock (delay and Doppler applied); ``range_m``
     is the per-sample range at emission.
@@ -203,12 +335,29 @@ def propagate(source_at_1m_pa: np.ndarray, range_m: np.ndarray, sample_rate_hz: 
     check_sample_rate(sample_rate_hz)
     x = np.asarray(source_at_1m_pa, dtype=np.float64)
     r = np.maximum(range_m, MIN_RANGE_M)
-    return _absorption_filter(x / r, r, sample_rate_hz, air_temperature_k, relative_humidity)
+    ground = None
+    if ground_factor is not None:
+        if source_height_m is None or horizontal_range_m is None:
+            raise ValueError("ground_factor needs source_height_m and horizontal_range_m per sample")
+        hs = np.broadcast_to(np.asarray(source_height_m, dtype=np.float64), r.shape)
+        dp = np.broadcast_to(np.asarray(horizontal_range_m, dtype=np.float64), r.shape)
+        iso9613_ground_attenuation_db(0.0, receiver_height_m, 0.0, ground_factor)     # validates G
+        ground = (hs, float(receiver_height_m), dp, float(ground_factor))
+    return _absorption_filter(x / r, r, sample_rate_hz, air_temperature_k, relative_humidity, ground)
 
 
 # --------------------------------------------------------------------------------------------
 # Sources (pressure at 1 m, evaluated on the microphone clock through tau(t))
 # --------------------------------------------------------------------------------------------
+
+def _shaped_gain(f_hz: np.ndarray, low_hz: float, high_hz: float, slope_db_per_octave: float = 0.0) -> np.ndarray:
+    """Amplitude response of :func:`_shaped_noise`: 2nd-order high-pass, 4th-order low-pass, tilt."""
+    f_safe = np.maximum(np.asarray(f_hz, dtype=np.float64), 1e-3)
+    hp = (f_safe / low_hz) ** 2 / (1.0 + (f_safe / low_hz) ** 2) if low_hz > 0 else np.ones_like(f_safe)
+    lp = 1.0 / (1.0 + (f_safe / high_hz) ** 4)
+    tilt = (f_safe / max(low_hz, 1.0)) ** (slope_db_per_octave / 6.0206)
+    return hp * lp * np.minimum(tilt, 1e3)
+
 
 def _shaped_noise(rng: np.random.Generator, n: int, sample_rate_hz: float, low_hz: float, high_hz: float,
                   slope_db_per_octave: float = 0.0) -> np.ndarray:
@@ -216,11 +365,7 @@ def _shaped_noise(rng: np.random.Generator, n: int, sample_rate_hz: float, low_h
     n_fft = sfft.next_fast_len(n, real=True)
     white = rng.standard_normal(n_fft)
     f = np.fft.rfftfreq(n_fft, 1.0 / sample_rate_hz)
-    f_safe = np.maximum(f, 1e-3)
-    hp = (f_safe / low_hz) ** 2 / (1.0 + (f_safe / low_hz) ** 2) if low_hz > 0 else np.ones_like(f)
-    lp = 1.0 / (1.0 + (f_safe / high_hz) ** 4)
-    tilt = (f_safe / max(low_hz, 1.0)) ** (slope_db_per_octave / 6.0206)
-    shaped = sfft.irfft(sfft.rfft(white) * (hp * lp * np.minimum(tilt, 1e3)), n=n_fft)[:n]
+    shaped = sfft.irfft(sfft.rfft(white) * _shaped_gain(f, low_hz, high_hz, slope_db_per_octave), n=n_fft)[:n]
     rms = np.sqrt(np.mean(shaped ** 2))
     return shaped / max(rms, 1e-30)
 
@@ -253,14 +398,19 @@ def _harmonic_poly(z: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
 
 def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_rate_hz: float,
                     rng: np.random.Generator, tonal_db_1m: float, broadband_db_1m: float,
-                    hover_rpm: float) -> np.ndarray:
+                    hover_rpm: float, *, sound_power_dba: float | None = None,
+                    tonal_gain: np.ndarray | None = None, broadband_gain: np.ndarray | None = None) -> np.ndarray:
     """Pressure at 1 m of a set of rotors heard through ``retarded`` (microphone clock).
 
     ``rpm`` (R, N) is each rotor's speed at the emission time of every microphone sample. Each
     rotor gives blade-passing harmonics k x rpm/60 x n_blades (k = 1..10, amplitude ~ k^-0.8), a
     shaft-rate imbalance line and motor electrical lines at 7 and 14 x the shaft rate; rotors with
     slightly different RPM beat. Broadband turbulence is shaped noise modulated at the BPF.
-    Tonal level scales with thrust (rpm^2), broadband with rpm^2.5.
+    Tonal pressure scales with thrust (rpm^2), broadband with rpm^2.5 (acoustic power ~ rpm^4 / rpm^5).
+
+    ``sound_power_dba`` (L_WA at hover) rescales both parts together (keeping their ratio) so the
+    A-weighted level at 1 m, averaged over the sphere, is L_WA - 10 log10(4 pi) at ``hover_rpm``;
+    ``tonal_gain``/``broadband_gain`` (N,) are the directivity amplitude factors per sample.
     """
     rpm = np.atleast_2d(np.asarray(rpm, dtype=np.float64))
     if rpm.size and np.min(rpm) < 0:
@@ -286,6 +436,11 @@ def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_r
     # rms of sum_p |c_p| cos(.) per rotor = sqrt(sum |c|^2 / 2); scale so all rotors together give tonal_db_1m
     per_rotor_rms = np.sqrt(np.sum(np.abs(coeffs) ** 2, axis=1) / 2)
     coeffs *= db_spl_to_pa(tonal_db_1m) / np.sqrt(n_rotors) / per_rotor_rms[:, None]
+    broadband_pa = db_spl_to_pa(broadband_db_1m)
+    if sound_power_dba is not None:
+        scale = _sound_power_scale(coeffs, broadband_pa, n_blades, hover_rpm, sound_power_dba)
+        coeffs *= scale
+        broadband_pa *= scale
     # only powers of z that lie below Nyquist at the highest shaft rate are kept
     max_shaft_hz = float(np.max(shaft_hz_rx)) if n else 0.0
     if max_shaft_hz > 0:
@@ -293,10 +448,33 @@ def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_r
         coeffs[:, ~keep] = 0
     thrust = (rpm / max(hover_rpm, 1e-9)) ** 2
     tonal = np.sum(_harmonic_poly(z, coeffs.astype(np.complex64)) * thrust, axis=0, dtype=np.float64)
-    noise = _source_noise(rng, retarded, sample_rate_hz, 300.0, 6000.0, -3.0)
-    bpf_mod = 1.0 + 0.3 * np.real(z[0] ** n_blades)
-    broadband = noise * bpf_mod * np.mean(thrust, axis=0) ** 1.25 * db_spl_to_pa(broadband_db_1m)
+    noise = _source_noise(rng, retarded, sample_rate_hz, *BROADBAND_SHAPE)
+    bpf_mod = 1.0 + BPF_MODULATION * np.real(z[0] ** n_blades)
+    broadband = noise * bpf_mod * np.mean(thrust, axis=0) ** 1.25 * broadband_pa
+    if tonal_gain is not None:
+        tonal = tonal * tonal_gain
+    if broadband_gain is not None:
+        broadband = broadband * broadband_gain
     return tonal + broadband
+
+
+def _sound_power_scale(coeffs: np.ndarray, broadband_pa: float, n_blades: int, hover_rpm: float,
+                       sound_power_dba: float) -> float:
+    """Amplitude factor that gives A-weighted mean square (L_WA - 10 lg 4 pi at 1 m) at hover.
+
+    Tonal: sum over lines |c_p|^2 / 2 x A(p f_shaft)^2. Broadband: rms^2 x (1 + m^2 / 2) (BPF
+    modulation) x the A-weighted share of its spectrum (evaluated on a 1 Hz grid).
+    """
+    shaft_hz = hover_rpm / 60.0
+    powers = np.arange(coeffs.shape[1])
+    a_lin = 10 ** (a_weighting_db(np.maximum(powers * shaft_hz, 1e-3)) / 10)
+    tonal_ms = float(np.sum(np.abs(coeffs) ** 2 / 2 * a_lin[None, :]))
+    f = np.arange(1.0, AUDIO_BAND_HZ)
+    shape = _shaped_gain(f, *BROADBAND_SHAPE) ** 2
+    share = float(np.sum(shape * 10 ** (a_weighting_db(f) / 10)) / np.sum(shape))
+    broad_ms = broadband_pa ** 2 * (1 + BPF_MODULATION ** 2 / 2) * share
+    target_ms = db_spl_to_pa(sound_power_dba - SPHERE_DB) ** 2
+    return float(np.sqrt(target_ms / max(tonal_ms + broad_ms, 1e-300)))
 
 
 def _chirp_events(rng: np.random.Generator, n: int, sample_rate_hz: float, rate_per_s: float,
@@ -342,15 +520,41 @@ def airliner_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random
 
 
 def target_source_levels(kind: str, size_m: float) -> tuple[float, float]:
-    """(tonal, broadband) dB SPL at 1 m of a drone kind, +20 log10 of size / reference size."""
+    """(tonal, broadband) unweighted dB SPL at 1 m of a drone kind, +20 log10 of size / reference size.
+
+    Their difference sets the spectral balance; :func:`synthesize_target` rescales both to the
+    drone's sound power (:func:`sound_power_dba`)."""
     gain = 20.0 * np.log10(size_m / _REFERENCE_SIZE_M[kind])
     return _TONAL_DB_1M[kind] + gain, _BROADBAND_DB_1M[kind] + gain
 
 
+def _emission_geometry(track, frame_times_s: np.ndarray, tau_s: np.ndarray, mic_position_m: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-sample source position and body up axis at the emission time, and the microphone position."""
+    frame_t = np.asarray(frame_times_s, dtype=np.float64)
+    pos = _extrapolated(tau_s, frame_t, np.asarray(track.position_m, dtype=np.float64),
+                        np.asarray(track.velocity_mps, dtype=np.float64))
+    mic = np.broadcast_to(np.asarray(mic_position_m, dtype=np.float64).reshape(-1, 3), (frame_t.size, 3))
+    mic_at = np.stack([np.interp(tau_s, frame_t, mic[:, k]) for k in range(3)], -1)
+    rotation = getattr(track, "rotation", None)
+    if rotation is None:
+        up = np.tile([0.0, 0.0, 1.0], (tau_s.size, 1))
+    else:
+        frame = np.clip(np.round(np.interp(tau_s, frame_t, np.arange(frame_t.size))).astype(int), 0, frame_t.size - 1)
+        up = np.asarray(rotation, dtype=np.float64)[:, :, 2][frame]
+    return pos, up, mic_at
+
+
 def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarray, n_samples: int,
                       sample_rate_hz: float, air_temperature_k: float, relative_humidity: float,
-                      rng: np.random.Generator, wingbeat_hz: float = 4.0) -> tuple[np.ndarray, np.ndarray]:
-    """Received pressure (Pa) of one ``TargetTrack`` at the microphone, and its range per sample."""
+                      rng: np.random.Generator, wingbeat_hz: float = 4.0, *, ground_factor: float | None = None,
+                      sound_power_db: float | None = None, directivity: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Received pressure (Pa) of one ``TargetTrack`` at the microphone, and its range per sample.
+
+    Drones radiate their hover sound power ``sound_power_db`` (L_WA; default :func:`sound_power_dba`
+    of kind and size) with the rotor directivity about the body's up axis; ``ground_factor`` (ISO
+    9613-2 G, None = free field) adds the ground effect with heights above z = 0.
+    """
     from simulator.physics.timeline import rotor_hover_rpm
 
     check_sample_rate(sample_rate_hz)
@@ -359,20 +563,34 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
     c = speed_of_sound_mps(air_temperature_k)
     rx_t = np.arange(n_samples) / sample_rate_hz + float(frame_times_s[0])
     ret = retarded_time(rx_t, frame_times_s, track.position_m, track.velocity_mps, mic_position_m, c)
+    # geometry changes slowly: evaluate it every GEOMETRY_STEP samples and interpolate
+    coarse = np.unique(np.append(np.arange(0, n_samples, GEOMETRY_STEP), n_samples - 1))
+    pos_c, up_c, mic_c = _emission_geometry(track, frame_times_s, ret.tau_s[coarse], mic_position_m)
+    samples = np.arange(n_samples)
     if track.kind in DRONE_KINDS:
         rpm_frames = np.asarray(track.rotor_rpm, dtype=np.float64)
         _check_nonnegative("rotor_rpm", rpm_frames)
         rpm = np.stack([np.interp(ret.tau_s, frame_times_s, rpm_frames[:, r]) for r in range(rpm_frames.shape[1])])
         tonal_db, broad_db = target_source_levels(track.kind, track.size_m)
+        power = sound_power_dba(track.kind, track.size_m) if sound_power_db is None else float(sound_power_db)
+        gains = (None, None)
+        if directivity:
+            gains = tuple(np.interp(samples, coarse, g) for g in rotor_directivity(mic_c - pos_c, up_c))
         src = rotor_signature(rpm, max(int(track.n_blades), 1), ret, sample_rate_hz, rng, tonal_db, broad_db,
-                              rotor_hover_rpm(track.kind, track.size_m))
+                              rotor_hover_rpm(track.kind, track.size_m), sound_power_dba=power,
+                              tonal_gain=gains[0], broadband_gain=gains[1])
     elif track.kind == "bird":
         src = bird_signature(wingbeat_hz, ret, sample_rate_hz, rng)
     elif track.kind == "airliner":
         src = airliner_signature(ret, sample_rate_hz, rng)
     else:
         raise ValueError(f"kind: unknown target kind {track.kind!r}")
-    return propagate(src, ret.range_m, sample_rate_hz, air_temperature_k, relative_humidity), ret.range_m
+    ground = {}
+    if ground_factor is not None:
+        ground = {"ground_factor": ground_factor, "source_height_m": np.interp(samples, coarse, pos_c[:, 2]),
+                  "receiver_height_m": float(np.mean(mic_c[:, 2])),
+                  "horizontal_range_m": np.interp(samples, coarse, np.linalg.norm((pos_c - mic_c)[:, :2], axis=-1))}
+    return propagate(src, ret.range_m, sample_rate_hz, air_temperature_k, relative_humidity, **ground), ret.range_m
 
 
 # --------------------------------------------------------------------------------------------
@@ -468,6 +686,7 @@ class AudioScene:
     targets_pa: dict[str, np.ndarray] = field(default_factory=dict)   # target name -> (N,) float32
     target_range_m: dict[str, np.ndarray] = field(default_factory=dict)
     ambience_pa: dict[str, np.ndarray] = field(default_factory=dict)  # bed name -> (N,) float32
+    sound_power_dba: dict[str, float] = field(default_factory=dict)   # drone name -> L_WA at hover used
 
     @property
     def n_samples(self) -> int:
@@ -475,11 +694,15 @@ class AudioScene:
 
 
 def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, duration_s: float | None = None,
-                     sample_rate_hz: float = AUDIO_SAMPLE_RATE_HZ, stream_indices: tuple[int, ...] = ()) -> AudioScene:
+                     sample_rate_hz: float = AUDIO_SAMPLE_RATE_HZ, stream_indices: tuple[int, ...] = (),
+                     ground_factor: float | None = DEFAULT_GROUND_FACTOR,
+                     sound_power_db: dict[str, float] | None = None) -> AudioScene:
     """Audio of every timeline target plus ambient beds at the microphone (the camera rig).
 
     Target i draws from ``rng_for(seed, "acoustics", *stream_indices, i)``; beds from index 1000+k.
-    ``duration_s`` defaults to the timeline span plus one frame.
+    ``duration_s`` defaults to the timeline span plus one frame. ``ground_factor`` is the ISO 9613-2
+    G of the ground (0 hard, 1 porous, None = free field); ``sound_power_db`` overrides the L_WA
+    of drones by target name.
     """
     check_sample_rate(sample_rate_hz)
     times = np.asarray(timeline.times_s, dtype=np.float64)
@@ -488,7 +711,7 @@ def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, d
         duration_s = float(times[-1] - times[0]) + step
     if not duration_s > 0:
         raise ValueError(f"duration_s must be > 0, got {duration_s}")
-    n = int(round(duration_s * sample_rate_hz))
+    n = round(duration_s * sample_rate_hz)
     atm = timeline.scenario.atmosphere
     wingbeats = {t.name: t.wingbeat_hz for t in timeline.scenario.targets}
     mic = np.asarray(timeline.microphone_position_m, dtype=np.float64)
@@ -496,8 +719,12 @@ def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, d
     scene = AudioScene(sample_rate_hz=float(sample_rate_hz), mix_pa=np.zeros(0, np.float32))
     for index, track in enumerate(timeline.targets):
         rng = rng_for(seed, "acoustics", *stream_indices, index)
+        power = (sound_power_db or {}).get(track.name)
         received, range_m = synthesize_target(track, times, mic, n, sample_rate_hz, atm.air_temperature_k,
-                                              atm.relative_humidity, rng, wingbeats.get(track.name, 4.0))
+                                              atm.relative_humidity, rng, wingbeats.get(track.name, 4.0),
+                                              ground_factor=ground_factor, sound_power_db=power)
+        if track.kind in DRONE_KINDS:
+            scene.sound_power_dba[track.name] = power if power is not None else sound_power_dba(track.kind, track.size_m)
         mix += received
         scene.targets_pa[track.name] = received.astype(np.float32)
         scene.target_range_m[track.name] = range_m.astype(np.float32)

@@ -123,3 +123,142 @@ def test_wav_round_trip(tmp_path):
     raw = path.read_bytes()
     peak = raw.find(b"PEAK")
     assert peak > 0 and raw[peak + 12:peak + 16] == b"\0\0\0\0"      # no wall-clock stamp: byte-identical files
+
+
+# --------------------------------------------------------------------------------------------
+# Calibrated sources: A-weighting, EU class limits, sound power, directivity, ISO 9613-2 ground
+# --------------------------------------------------------------------------------------------
+
+def _a_level_db(x: np.ndarray) -> float:
+    spec = np.abs(np.fft.rfft(x)) ** 2
+    f = np.fft.rfftfreq(x.size, 1.0 / FS)
+    weights = 10 ** (ac.a_weighting_db(np.maximum(f, 1.0)) / 10)
+    return float(10 * np.log10(2 * np.sum(spec * weights) / x.size ** 2 / ac.P_REF_PA ** 2))
+
+
+def test_a_weighting_matches_iec_61672_table():
+    # IEC 61672-1 Table 3 values at the exact base-10 band frequencies 10^(n/10) Hz (31.5 Hz = 10^1.5)
+    for n, a in [(15, -39.4), (18, -26.2), (20, -19.1), (24, -8.6), (30, 0.0), (33, 1.2), (36, 1.0), (39, -1.1),
+                 (40, -2.5)]:
+        assert float(ac.a_weighting_db(10 ** (n / 10))) == pytest.approx(a, abs=0.05)
+
+
+def test_eu_class_limits_by_mass():
+    assert ac.eu_class(0.249) == "C0" and ac.eu_class(0.5) == "C1" and ac.eu_class(2.0) == "C2"
+    assert [ac.eu_sound_power_limit_db(0.5, p) for p in (0, 1, 2)] == [85.0, 83.0, 81.0]
+    # C2 at 2 kg, +4 years: 81 + 18.5 lg(2000 / 900) = 87.42 dB
+    assert ac.eu_sound_power_limit_db(2.0, 2) == pytest.approx(87.416, abs=0.001)
+    assert ac.eu_sound_power_limit_db(0.2) is None and ac.eu_sound_power_limit_db(6.0) is None
+    with pytest.raises(ValueError, match="phase"):
+        ac.eu_sound_power_limit_db(0.5, 3)
+
+
+def test_default_sound_power_of_the_reference_quad():
+    # 0.45 m quad: 0.75 kg (C1), 83 + 18.5 lg(0.75 / 0.9) = 81.54 dB L_WA -> 70.55 dBA at 1 m (free field)
+    assert ac.drone_mass_kg("quadcopter", 0.45) == pytest.approx(0.75)
+    lwa = ac.sound_power_dba("quadcopter", 0.45)
+    assert lwa == pytest.approx(81.535, abs=0.01)
+    assert 70.0 <= lwa - ac.SPHERE_DB <= 74.0
+    for size in (0.2, 0.3, 0.45, 0.5):                     # never above the class limit at entry into force
+        m = ac.drone_mass_kg("quadcopter", size)
+        cap = ac.eu_sound_power_limit_db(m, 0)
+        assert cap is None or ac.sound_power_dba("quadcopter", size) <= cap
+
+
+def _fibonacci_sphere(n: int) -> np.ndarray:
+    i = np.arange(n) + 0.5
+    z = 1 - 2 * i / n
+    phi = np.pi * (1 + 5 ** 0.5) * i
+    return np.stack([np.sqrt(1 - z ** 2) * np.cos(phi), np.sqrt(1 - z ** 2) * np.sin(phi), z], -1)
+
+
+def _hover_track(kind: str, size_m: float, position_m, rpm_factor: float = 1.0, duration_s: float = 0.6):
+    from simulator.physics.timeline import rotor_hover_rpm
+
+    t = np.arange(0.0, duration_s, 1.0 / 28)
+    pos = np.tile(np.asarray(position_m, float), (t.size, 1))
+    n_rotors = 6 if kind == "hexacopter" else 4
+    rpm = np.full((t.size, n_rotors), rpm_factor * rotor_hover_rpm(kind, size_m))
+    zeros = np.zeros(t.size)
+    return TargetTrack(1, "d", kind, size_m, pos, np.zeros_like(pos), np.tile(np.eye(3), (t.size, 1, 1)), rpm,
+                       zeros, zeros, n_blades=2), t
+
+
+@pytest.mark.parametrize("kind,size_m", [("quadcopter", 0.45), ("hexacopter", 0.8)])
+def test_sound_power_from_sphere_average_within_1_db(kind, size_m):
+    mic = np.array([0.0, 0.0, 1.5])
+    levels = []
+    for k, d in enumerate(_fibonacci_sphere(16)):
+        track, t = _hover_track(kind, size_m, mic + 10.0 * d)
+        x, _ = ac.synthesize_target(track, t, mic, FS // 2, FS, 293.15, 0.7, rng_for(k, "acoustics", 0))
+        levels.append(_a_level_db(x[FS // 20:]))
+    levels = np.array(levels)
+    lwa = 10 * np.log10(np.mean(10 ** (levels / 10))) + 20 * np.log10(10.0) + ac.SPHERE_DB
+    assert abs(lwa - ac.sound_power_dba(kind, size_m)) < 1.0
+    assert levels.max() - levels.min() > 2.0                      # directivity: not omnidirectional
+
+
+def test_directivity_is_power_normalised_and_shaped():
+    d = _fibonacci_sphere(4000)
+    up = np.tile([0.0, 0.0, 1.0], (d.shape[0], 1))
+    tonal, broad = ac.rotor_directivity(d, up)
+    assert np.mean(tonal ** 2) == pytest.approx(1.0, abs=0.01)
+    assert np.mean(broad ** 2) == pytest.approx(1.0, abs=0.01)
+    in_plane, below45, below = ac.rotor_directivity(np.array([[1.0, 0, 0], [1.0, 0, -1.0], [0, 0, -1.0]]), up[:3])[0]
+    assert below45 > in_plane and below45 > below                 # tonal lobe 45 deg off the rotor plane
+    assert 20 * np.log10(below45 / in_plane) == pytest.approx(10 * np.log10(1.35 / 0.35), abs=1e-9)
+
+
+def test_level_rises_with_rpm_of_the_flight_state():
+    mic = np.array([0.0, 0.0, 1.5])
+    levels = {}
+    for factor in (1.0, 1.1):
+        track, t = _hover_track("quadcopter", 0.45, [0.0, 20.0, 10.0], rpm_factor=factor)
+        x, _ = ac.synthesize_target(track, t, mic, FS // 2, FS, 293.15, 0.7, rng_for(4, "acoustics", 0))
+        levels[factor] = _a_level_db(x[FS // 20:])
+    # tonal pressure ~ rpm^2 (+1.66 dB), broadband ~ rpm^2.5 (+2.07 dB), lines move up the A-curve
+    assert 1.5 < levels[1.1] - levels[1.0] < 3.0
+
+
+def test_iso9613_ground_attenuation_hand_values():
+    bands = ac.iso9613_ground_attenuation_db(50.0, 1.5, 200.0, 0.0)
+    assert np.allclose(bands, -3.0)                               # hard ground, q = 0: +3 dB everywhere
+    soft = ac.iso9613_ground_attenuation_db(50.0, 1.5, 200.0, 1.0)
+    # 500 Hz, receiver region: -1.5 + 1.5 + 14 exp(-0.46 x 1.5^2)(1 - exp(-4)); source region (50 m): 0
+    c_r = 14.0 * np.exp(-0.46 * 2.25) * (1 - np.exp(-4.0))
+    assert soft[3] == pytest.approx(c_r, abs=1e-9)
+    assert soft[0] == pytest.approx(-3.0) and np.allclose(soft[5:], 0.0)
+    # far (q > 0): the middle region adds -3q (1 - G); d = 2000 m, hs + hr = 51.5 m: q = 1 - 1545 / 2000
+    mixed = ac.iso9613_ground_attenuation_db(50.0, 1.5, 2000.0, 0.5)
+    assert mixed[6] == pytest.approx(-1.5 * 0.5 * 2 - 3 * (1 - 1545 / 2000) * 0.5, abs=1e-9)
+    with pytest.raises(ValueError, match="ground_factor"):
+        ac.iso9613_ground_attenuation_db(50.0, 1.5, 200.0, 1.5)
+
+
+def test_ground_effect_sign_and_size_on_a_tone():
+    n = FS
+    tone = np.sin(2 * np.pi * 500.0 * np.arange(n) / FS)
+    kw = {"source_height_m": np.full(n, 50.0), "receiver_height_m": 1.5, "horizontal_range_m": np.full(n, 200.0)}
+    free = ac.propagate(tone, np.full(n, 206.2), FS, 293.15, 0.7)
+    hard = ac.propagate(tone, np.full(n, 206.2), FS, 293.15, 0.7, ground_factor=0.0, **kw)
+    soft = ac.propagate(tone, np.full(n, 206.2), FS, 293.15, 0.7, ground_factor=1.0, **kw)
+    lvl = {k: 10 * np.log10(np.mean(v[FS // 4: -FS // 4] ** 2)) for k, v in (("free", free), ("hard", hard), ("soft", soft))}
+    assert lvl["hard"] - lvl["free"] == pytest.approx(3.0, abs=0.05)          # reflection adds 3 dB
+    expected_soft = -14.0 * np.exp(-0.46 * 2.25) * (1 - np.exp(-4.0))         # 500 Hz over porous ground
+    assert lvl["soft"] - lvl["free"] == pytest.approx(expected_soft, abs=0.05)
+    assert lvl["soft"] < lvl["free"] < lvl["hard"]
+
+
+def test_scene_audio_is_deterministic_and_reports_sound_power():
+    from scenes.loader import load_scenario
+    from simulator.physics.timeline import build_timeline
+
+    tl = build_timeline(load_scenario("clear_day_quad"), 0, n_frames=15)
+    a = ac.synthesize_audio(tl, 5, duration_s=0.5)
+    b = ac.synthesize_audio(tl, 5, duration_s=0.5)
+    assert a.mix_pa.tobytes() == b.mix_pa.tobytes()
+    name = tl.targets[0].name
+    assert a.sound_power_dba[name] == pytest.approx(ac.sound_power_dba(tl.targets[0].kind, tl.targets[0].size_m))
+    louder = ac.synthesize_audio(tl, 5, duration_s=0.5, sound_power_db={name: a.sound_power_dba[name] + 6.0})
+    ratio = np.sqrt(np.mean(louder.targets_pa[name] ** 2) / np.mean(a.targets_pa[name] ** 2))
+    assert 20 * np.log10(ratio) == pytest.approx(6.0, abs=0.01)
