@@ -489,6 +489,9 @@ def _swap_program(ctx: Context, prog) -> dict:
         cid.append(np.full(clip.n_segments, clip.clip_id, dtype=object))
         scn.append(np.full(clip.n_segments, clip.scene, dtype=object))
     T, y, cid, scn = np.concatenate(targ), np.concatenate(y), np.concatenate(cid), np.concatenate(scn)
+    if not T.any():
+        return {**base, "n_clips": len(items), "n_targeted": 0,
+                "status": "not run: no test segment where the drone clip's sensor observes the drone"}
     x = (np.concatenate([p.mfcc for p in parts]), np.concatenate([p.video for p in parts]),
          np.concatenate([p.rf for p in parts]))
     offsets = np.cumsum([0] + [ctx.prep.clips[i].n_segments for i in ctx.test])
