@@ -80,11 +80,18 @@ def demo(
     out: Path = typer.Option(Path("out/demo"), "--out", "-o", help="Run folder (re-running reuses its dataset)."),
     quick: bool = typer.Option(False, "--quick", help="Toy scale (about 1-2 minutes) instead of the full demo."),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
+    detection: bool = typer.Option(False, "--detection", help="Run the reduced detection experiment (RGB/thermal "
+                                   "detectors, fusion, tracking; budget 15 minutes on 2 cores) into OUT/detection instead."),
 ) -> None:
     """The main job: generate a small seeded RGB + audio + RF scenario set, train sigmoid and
     evidential models, run all ablation conditions, a reduced degradation sweep, the conflict study
     and a gate sweep, and write OUT/report.html (about 10 minutes on 2 CPU cores; --quick: toy scale).
     """
+    if detection:
+        from evids.experiments.detection import run_detection_demo
+
+        typer.echo(f"report: {run_detection_demo(out, typer.echo)}")
+        return
     from evids.experiments import run_demo
 
     times = run_demo(out, quick=quick, progress=progress, log=typer.echo)

@@ -454,6 +454,9 @@ def build_report(run_dir: str | Path) -> Path:
     if ex.is_file():
         parts.append("<h2>Example scenarios</h2>" + _img(base64.b64encode(ex.read_bytes()).decode("ascii"),
                                                           "Video frame, MFCC and RF spectrogram, clean and degraded"))
+    if (run_dir / "detection" / "detection.html").is_file():  # `evids demo --detection` writes it beside this run
+        parts.append("<h2>Detection experiment</h2><p><a href='detection/detection.html'>RGB/thermal detection, fusion "
+                     "and tracking (the paper's E1/E3 on generated video)</a></p>")
     stages = run.get("stages", {})
     parts.append("<h2>Run</h2>" + _table(["stage", "seconds"], [[k, _fmt(float(v["seconds"]))] for k, v in stages.items() if k != "complete"])
                  + "<details><summary>hyper-parameters and training record</summary><pre>"
