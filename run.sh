@@ -66,7 +66,7 @@ job="${1:-}"
 case "$job" in
   demo)
     install_system
-    install_python "audio"
+    install_python "audio,tracking"   # tracking: trackeval for `evids demo --detection`
     shift
     .venv/bin/evids demo --out out/demo "$@"
     echo "open out/demo/report.html"

@@ -76,6 +76,7 @@ def stream_of(name: str) -> str:
 
 def main() -> None:
     quick = "--quick" in sys.argv
+    print(f"load average before: {os.getloadavg()[0]:.2f}")
     budget = 0.1 if quick else 0.4
     data = inputs()
     ours: dict[str, float] = {}
@@ -120,6 +121,7 @@ def main() -> None:
     for k, v in ratios.items():
         print(f"ratio {k}: {v:.2f}")
     worst = min(ratios.values()) if ratios else float("nan")
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
     print(f"worst ratio vs peers: {worst:.2f}")
 
 

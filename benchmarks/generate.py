@@ -39,7 +39,11 @@ def _one(workers: int, pool: bool, sequences: int, frames: int, out: Path) -> di
     if errors:
         raise SystemExit(f"benchmark sequences failed: {errors}")
     peak = max(r["peak_rss_mb"] for r in results.values())
-    return {"workers": workers, "pool": pool, "seconds": seconds, "sequences": sequences,
+    stage_s: dict[str, float] = {}
+    for r in results.values():
+        for k, v in r.get("stage_s", {}).items():
+            stage_s[k] = stage_s.get(k, 0.0) + v / sequences
+    return {"workers": workers, "pool": pool, "seconds": seconds, "sequences": sequences, "stage_s": stage_s,
             "per_hour": sequences / seconds * 3600, "peak_worker_mb": peak,
             "load_avg_1min": os.getloadavg()[0], "pids": len({r["pid"] for r in results.values()}),
             "cores_used": sum(r["cpu_s"] for r in results.values()) / seconds}
@@ -74,6 +78,10 @@ def main() -> None:
     cpu_per_seq = {k: r["cores_used"] * r["seconds"] / r["sequences"] for k, r in runs.items()}
     print(f"render CPU seconds per sequence: 1 worker {cpu_per_seq['pool1']:.2f}, 2 workers {cpu_per_seq['pool2']:.2f} "
           "(not higher with 2 workers = no per-worker overhead; a ratio below 2 then means the cores were busy)")
+    print("wall seconds per sequence by stage (inside the worker): 1 worker -> 2 workers")
+    for k in runs["pool1"]["stage_s"]:
+        one, two = runs["pool1"]["stage_s"][k], runs["pool2"]["stage_s"].get(k, float("nan"))
+        print(f"  {k:44s} {one:6.3f} -> {two:6.3f} s")
     vs_default = runs["pool2"]["per_hour"] / runs["inproc1"]["per_hour"]
     print(f"scaling ratio 2 workers / 1 worker: {ratio:.2f} (target >= 1.8); cores the renders actually got: "
           f"{runs['pool1']['cores_used']:.2f} -> {runs['pool2']['cores_used']:.2f}")

@@ -201,3 +201,31 @@ class FrameRateMismatch(_Cross):
         if shape is None or self.is_identity(params) or len(shape) == self.item_ndims()[0]:
             return dict(meta or {})
         return reindex_frames(dict(meta or {}), self.index(shape[0], params))
+
+
+# ----------------------------------------------------------------------------- signature swaps
+def blend_signature(x: np.ndarray, donor: np.ndarray, strength: float, stream: str) -> np.ndarray:
+    """Move a stream towards a donor recording of the SAME scene (its counterfactual twin).
+
+    The twin differs only in the drone's own signature, so ``strength`` 1 removes the drone's
+    evidence from a drone clip (target-blinding) or adds a drone's evidence to a background clip
+    (a decoy that is drone-like to this one sensor); 0 < strength < 1 is the weak variant: the
+    signature at (1 - strength) / strength of its amplitude (rgb, audio, rf_iq) or power (rf_spec).
+    Pure: rgb uint8 frames blend in [0, 255] (rounded), audio and I/Q blend linearly, RF
+    spectrograms (dB) blend in power.
+    """
+    if not 0.0 <= float(strength) <= 1.0:
+        raise DegradationError(f"signature swap: strength must be in [0, 1], got {strength!r}")
+    x, donor = np.asarray(x), np.asarray(donor)
+    if x.shape != donor.shape:
+        raise DegradationError(f"signature swap: donor shape {donor.shape} differs from the stream's {x.shape}")
+    s = float(strength)
+    if stream == "rgb":
+        y = (1.0 - s) * x.astype(np.float64) + s * donor.astype(np.float64)
+        return np.clip(np.round(y), 0, 255).astype(x.dtype) if x.dtype == np.uint8 else y.astype(x.dtype)
+    if stream in ("audio", "rf_iq"):
+        return ((1.0 - s) * x + s * donor).astype(x.dtype)
+    if stream == "rf_spec":
+        p = (1.0 - s) * np.power(10.0, x.astype(np.float64) / 10.0) + s * np.power(10.0, donor.astype(np.float64) / 10.0)
+        return (10.0 * np.log10(np.maximum(p, 1e-30))).astype(x.dtype)
+    raise DegradationError(f"signature swap: stream must be rgb, audio, rf_iq or rf_spec, got {stream!r}")

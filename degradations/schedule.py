@@ -7,7 +7,7 @@ uniform durations and severities), so the same spec always yields the same event
 """
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -118,7 +118,7 @@ class RandomSchedule(_Model):
         return _events_at(self.events(), t_s, 0.0)
 
 
-Schedule = Annotated[Union[ConstantSchedule, StepSchedule, RampSchedule, RandomSchedule],
+Schedule = Annotated[ConstantSchedule | StepSchedule | RampSchedule | RandomSchedule,
                      Field(discriminator="kind")]
 
 
@@ -155,3 +155,34 @@ def conflict_program(name: str, schedule: Schedule, cause: str | None = None) ->
         raise ValueError(f"program {name}: cause must be one of {sorted(causes)}, got {cause!r}")
     return [{"name": deg, "stream": stream, "schedule": schedule, "program": name}
             for deg, stream in causes[cause]]
+
+
+# ------------------------------------------------------------------ twin-swap conflict programs
+#: program -> (description, kind, compromised modalities). ``blind`` programs act on drone clips
+#: (the modality loses the drone: its stream moves to the drone-absent twin's), ``decoy`` programs
+#: on background clips (the modality gains a drone-like signature from the drone twin's stream).
+#: Modalities: video (RGB frames), audio (waveform), rf (spectrogram). Strength knob: 1 strong,
+#: < 1 weak (see degradations.crossmodal.blend_signature).
+SWAP_PROGRAMS: dict[str, tuple[str, str, tuple[str, ...]]] = {
+    "video_occluded": ("cloud occlusion / glare hides the drone from the camera", "blind", ("video",)),
+    "audio_drowned": ("loud ambience drowns the rotor sound", "blind", ("audio",)),
+    "rf_autonomous": ("autonomous flight: the drone's control and video links go silent", "blind", ("rf",)),
+    "video_decoy": ("a drone-sized look-alike (bird, balloon, model) in view; nothing to hear or receive",
+                    "decoy", ("video",)),
+    "audio_decoy": ("rotor-like sound (model aircraft, lawnmower, distant helicopter); nothing to see",
+                    "decoy", ("audio",)),
+    "rf_decoy": ("a drone-like emitter on the ground (hopping RC link, FPV video link)", "decoy", ("rf",)),
+    "audio_rf_blind": ("autonomous flight in loud wind: audio and RF lose the drone, video still sees it",
+                       "blind", ("audio", "rf")),
+    "audio_rf_decoy": ("a ground RC transmitter next to a running model engine: audio and RF say drone, "
+                       "video sees sky", "decoy", ("audio", "rf")),
+    "video_rf_decoy": ("a flying look-alike carrying a radio (model aircraft): video and RF say drone, "
+                       "audio hears nothing", "decoy", ("video", "rf")),
+}
+
+
+def swap_program(name: str) -> tuple[str, str, tuple[str, ...]]:
+    """(description, kind, modalities) of a twin-swap conflict program."""
+    if name not in SWAP_PROGRAMS:
+        raise ValueError(f"unknown twin-swap conflict program {name!r}; known: {sorted(SWAP_PROGRAMS)}")
+    return SWAP_PROGRAMS[name]

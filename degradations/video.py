@@ -32,6 +32,17 @@ def line_kernel(length_px: int, angle_deg: float) -> np.ndarray:
     return ker / ker.sum()
 
 
+def trim_kernel(ker: np.ndarray) -> np.ndarray:
+    """Drop all-zero outer rows/columns symmetrically (the centre, i.e. the anchor, stays put):
+    the filter result is unchanged, but OpenCV filters a thin kernel directly instead of by DFT
+    (a 15 x 15 line kernel: about 10-25x faster)."""
+    rows, cols = np.flatnonzero(ker.any(axis=1)), np.flatnonzero(ker.any(axis=0))
+    cy, cx = ker.shape[0] // 2, ker.shape[1] // 2
+    ry = max(cy - rows[0], rows[-1] - cy)
+    rx = max(cx - cols[0], cols[-1] - cx)
+    return ker[cy - ry:cy + ry + 1, cx - rx:cx + rx + 1]
+
+
 def disk_kernel(radius_px: float) -> np.ndarray:
     """Normalised defocus disk kernel (anti-aliased edge)."""
     r = max(float(radius_px), 0.5)
@@ -120,7 +131,7 @@ class MotionBlur(Degradation):
         p["angle_deg"] = float(rng.uniform(0.0, 180.0))
 
     def _apply(self, x, params, meta):
-        ker = line_kernel(params["length_px"], params["angle_deg"])
+        ker = trim_kernel(line_kernel(params["length_px"], params["angle_deg"]))
         return _frames(lambda f: cv2.filter2D(f, -1, ker, borderType=cv2.BORDER_REFLECT), x)
 
 
@@ -235,7 +246,10 @@ class Rain(Degradation):
 
 @register
 class JPEG(Degradation):
-    """JPEG re-encoding per frame with OpenCV at ``quality`` (ImageNet-C 25/18/15/10/7)."""
+    """JPEG re-encoding per frame at ``quality`` (ImageNet-C 25/18/15/10/7) with libjpeg-turbo via
+    simplejpeg: it takes RGB directly (correct chroma without a colour conversion), 4:2:0 chroma
+    subsampling as in common JPEG writers, libjpeg-turbo's fast integer DCT and (decoding) plain
+    chroma upsampling: libjpeg's standard speed options, about 1.2x OpenCV's encode + decode."""
     name = "video.jpeg"
     modality = "rgb"
     table = {"quality": (25.0, 18.0, 15.0, 10.0, 7.0)}
@@ -251,11 +265,12 @@ class JPEG(Degradation):
         is_float = x.dtype != np.uint8
         u8 = np.clip(x * 255.0 + 0.5, 0, 255).astype(np.uint8) if is_float else x
 
+        import simplejpeg
+
         def enc(f):
-            ok, buf = cv2.imencode(".jpg", cv2.cvtColor(f, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, q])
-            if not ok:
-                raise DegradationError(f"{self.name}: OpenCV failed to encode a frame")
-            return cv2.imdecode(buf, cv2.IMREAD_COLOR_RGB)
+            buf = simplejpeg.encode_jpeg(np.ascontiguousarray(f), quality=q, colorspace="RGB",
+                                         colorsubsampling="420", fastdct=True)
+            return simplejpeg.decode_jpeg(buf, colorspace="RGB", fastdct=True, fastupsample=True)
         y = _frames(enc, u8)
         return y.astype(np.float32) / 255.0 if is_float else y
 

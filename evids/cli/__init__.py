@@ -23,6 +23,7 @@ app = typer.Typer(
 
 def _register_all() -> None:
     from evids.cli import degrade as degrade_cli
+    from evids.cli import detect as detect_cli
     from evids.cli import experiments as experiments_cli
     from evids.cli import generate as generate_cli
     from evids.cli import render as render_cli
@@ -31,6 +32,7 @@ def _register_all() -> None:
     degrade_cli.register(app)
     generate_cli.register(app)
     experiments_cli.register(app)
+    detect_cli.register(app)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -98,11 +98,18 @@ def demo(
     out: Path = typer.Option(Path("out/demo"), "--out", "-o", help="Run folder (re-running reuses its dataset)."),
     quick: bool = typer.Option(False, "--quick", help="Toy scale (about 1-2 minutes) instead of the full demo."),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
+    detection: bool = typer.Option(False, "--detection", help="Run the reduced detection experiment (RGB/thermal "
+                                   "detectors, fusion, tracking; budget 15 minutes on 2 cores) into OUT/detection instead."),
 ) -> None:
     """The main job: generate a small seeded RGB + audio + RF scenario set, train sigmoid and
     evidential models, run all ablation conditions, a reduced degradation sweep, the conflict study
     and a gate sweep, and write OUT/report.html (about 10 minutes on 2 CPU cores; --quick: toy scale).
     """
+    if detection:
+        from evids.experiments.detection import run_detection_demo
+
+        typer.echo(f"report: {run_detection_demo(out, typer.echo)}")
+        return
     from evids.experiments import run_demo
     from simulator.files import DatasetLock, check_output, write_marker
 
@@ -115,7 +122,46 @@ def demo(
     typer.echo(f"report: {out / 'report.html'}")
 
 
+def audit(
+    dataset: Path = typer.Argument(..., help="A TRIDENT-layout dataset folder whose clips carry train/test splits."),
+    json_out: Path = typer.Option(None, "--json", help="Also write the audit as JSON to this (new) file."),
+    progress: bool = typer.Option(False, "--progress/--no-progress"),
+) -> None:
+    """Shortcut audit: target-blind baselines (scene statistics: median frame colour, target-free
+    strips, mean MFCC and mean spectrum on segments where the drone is not observable) fitted on
+    train and scored on test, balanced accuracy with 95 % scene-bootstrap CIs.
+
+    Exit status 0 when every baseline is at chance, 3 when one beats chance beyond its CI
+    (a shortcut: something other than the target separates the classes), 2 for bad input.
+
+    Example: evids audit out/demo/data
+    """
+    from evids.experiments.audit import audit_clips, dataset_split
+    from evids.experiments.data import load_clips
+    from simulator.files import write_atomic
+
+    if not Path(dataset).is_dir():
+        raise UserInputError(f"DATASET: {str(dataset)!r} is not a folder")
+    if json_out is not None and Path(json_out).exists():
+        raise UserInputError(f"--json: {str(json_out)!r} exists; choose a new file")
+    clips = load_clips(dataset, progress)
+    split = dataset_split(clips)
+    res = audit_clips(clips, split)
+    for r in res["baselines"]:
+        score = "n/a" if r["score"] is None else f"{r['score']:.3f} [{r['ci_low']:.3f}, {r['ci_high']:.3f}]"
+        typer.echo(f"{r['variant']:<20} {r['feature']:<20} {r['model']:<9} {score:<24} {r['status']}")
+    if json_out is not None:
+        import json
+
+        write_atomic(Path(json_out), json.dumps(res, indent=1))
+    if res["shortcut"]:
+        typer.echo("audit: SHORTCUT found (a target-blind baseline beats chance)")
+        raise typer.Exit(3)
+    typer.echo(f"audit: every target-blind baseline is at chance ({res['n_scored']} scored)")
+
+
 def register(app: typer.Typer) -> None:
+    app.command("audit")(audit)
     app.command("train")(train)
     app.command("evaluate")(evaluate)
     app.command("sweep")(sweep)

@@ -32,6 +32,8 @@ def run_all(cfg: ExperimentConfig, out: Path, progress: bool = True, log=print) 
         return res
 
     ctx = timed("data+train", runner.stage_train, cfg, out, progress)
+    if cfg.audit.enabled:
+        timed("audit", runner.stage_audit, ctx)
     timed("evaluate", runner.stage_evaluate, ctx)
     timed("examples", runner.stage_examples, ctx)
     timed("sweep", runner.stage_sweep, ctx)

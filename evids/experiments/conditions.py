@@ -8,10 +8,18 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from evids.experiments.pipeline import Models, Outputs, gmu_logit, late_probs
+from evids.experiments.pipeline import Models, Outputs, gmu_logit
 from evids.fusion import average, dempster_shafer, discounted_belief_fusion, yager
 from evids.gating import GateParams, simulate_gate, subset_fusion_table
-from evids.metrics import accuracy, brier, ece, macro_f1, nll, uauc
+from evids.metrics import (
+    accuracy,
+    brier,
+    ece,
+    entropy_from_log_probs,
+    macro_f1,
+    nll,
+    uauc,
+)
 from evids.models.backbones import MODALITIES
 
 
@@ -27,9 +35,14 @@ class Condition:
 CONDITIONS: tuple[Condition, ...] = (
     *(Condition(f"a_{m}", f"(a) unimodal {m} (sigmoid)", "standard", "sigmoid", m) for m in MODALITIES),
     *(Condition(f"a_edl_{m}", f"(a') unimodal {m} (EDL)", "standard", "edl", m) for m in MODALITIES),
-    Condition("b", "(b) Late Fusion (sigmoid)", "standard", "late"),
-    Condition("b_temp", "(b+T) Late Fusion + temperature (control)", "standard", "late_temp"),
-    Condition("c", "(c) GMU (sigmoid)", "standard", "gmu"),
+    *(Condition(f"a_T_{m}", f"(a+T) unimodal {m} (sigmoid + temperature)", "standard", "sigmoid_temp", m)
+      for m in MODALITIES),
+    Condition("b", "(b) Late Fusion (sigmoid), fitted on noisy val", "standard", "late"),
+    Condition("b_temp", "(b+T) Late Fusion + temperature", "standard", "late_temp"),
+    Condition("b_clean_fit", "(b, control) Late Fusion fitted on clean train", "standard", "late_clean"),
+    Condition("c", "(c) GMU (sigmoid), fitted on noisy val", "standard", "gmu"),
+    Condition("c_temp", "(c+T) GMU + temperature", "standard", "gmu_temp"),
+    Condition("c_clean_fit", "(c, control) GMU fitted on clean train", "standard", "gmu_clean"),
     Condition("d", "(d) EDL + average", "standard", "average"),
     Condition("d_prime", "(d') EDL + average, all modalities noisy", "all_spec", "average"),
     Condition("e", "(e) EDL + DS", "standard", "ds"),
@@ -57,6 +70,7 @@ class Prediction:
     conflict: np.ndarray | None = None     # DS: largest step conflict per sample
     fallback: np.ndarray | None = None
     skip_rate: float | None = None
+    log_probs: np.ndarray | None = None    # exact (N, 2) log-probabilities (entropies without ties)
 
 
 def _two(p1: np.ndarray) -> np.ndarray:
@@ -64,12 +78,38 @@ def _two(p1: np.ndarray) -> np.ndarray:
     return np.stack([1.0 - p1, p1], axis=1)
 
 
+def _from_logit(z: np.ndarray) -> Prediction:
+    """Sigmoid P(class 1) = sigmoid(z) with exact log-probabilities."""
+    z = np.asarray(z, np.float64)
+    lp = np.stack([-np.logaddexp(0.0, z), -np.logaddexp(0.0, -z)], axis=1)
+    return Prediction(np.exp(lp), log_probs=lp)
+
+
+def _late_log_probs(models: Models, out: Outputs, clean_fit: bool = False) -> np.ndarray:
+    """log [P0, P1] of Late Fusion p1 = sum_m w_m sigmoid(z_m), in the log domain."""
+    head = models.late_clean if clean_fit else models.late
+    logw = np.log(head.weights.detach().double().numpy())[:, None]
+    z = out.logit
+    from scipy.special import logsumexp
+
+    lp0 = logsumexp(logw - np.logaddexp(0.0, z), axis=0)
+    lp1 = logsumexp(logw - np.logaddexp(0.0, -z), axis=0)
+    return np.stack([lp0, lp1], axis=1)
+
+
+def _alpha_log_probs(alpha: np.ndarray) -> np.ndarray:
+    return np.log(alpha) - np.log(alpha.sum(-1, keepdims=True))
+
+
 def fuse(rule: str, alpha: np.ndarray, c_max: float, construction: str) -> Prediction:
     """Fuse (3, N, 2) alphas with one rule."""
     a = torch.from_numpy(alpha)
     if rule == "average":
+        from scipy.special import logsumexp
+
         r = average(a)
-        return Prediction(r.p.numpy(), r.u.numpy())
+        lp = logsumexp(_alpha_log_probs(alpha), axis=0) - np.log(alpha.shape[0])
+        return Prediction(r.p.numpy(), r.u.numpy(), log_probs=lp)
     if rule == "ds":
         r = dempster_shafer(a, c_max=c_max, construction=construction)
         return Prediction(r.p.numpy(), r.u.numpy(), r.conflict.amax(dim=0).numpy(), r.fallback.numpy())
@@ -110,20 +150,22 @@ def gated_ds(alpha: np.ndarray, params: GateParams, clip_ids: np.ndarray, c_max:
 def predict_condition(cond: Condition, models: Models, out: Outputs, clip_ids: np.ndarray, c_max: float,
                       construction: str, gate: GateParams | None) -> Prediction:
     """The condition's prediction from cached outputs of its input variant."""
-    if cond.rule == "sigmoid":
+    if cond.rule in ("sigmoid", "sigmoid_temp"):
         m = MODALITIES.index(cond.modality)
-        return Prediction(_two(1.0 / (1.0 + np.exp(-out.logit[m]))))
+        t = models.temperatures.get(cond.modality, 1.0) if cond.rule == "sigmoid_temp" else 1.0
+        return _from_logit(out.logit[m] / t)
     if cond.rule == "edl":
         al = out.alpha[MODALITIES.index(cond.modality)]
-        return Prediction(al / al.sum(-1, keepdims=True), 2.0 / al.sum(-1))
-    if cond.rule == "late":
-        return Prediction(_two(late_probs(models, out)))
+        return Prediction(al / al.sum(-1, keepdims=True), 2.0 / al.sum(-1), log_probs=_alpha_log_probs(al))
+    if cond.rule in ("late", "late_clean"):
+        lp = _late_log_probs(models, out, cond.rule == "late_clean")
+        return Prediction(np.exp(lp), log_probs=lp)
     if cond.rule == "late_temp":
-        p = np.clip(late_probs(models, out), 1e-9, 1 - 1e-9)
-        z = np.log(p / (1 - p)) / models.temperature
-        return Prediction(_two(1.0 / (1.0 + np.exp(-z))))
-    if cond.rule == "gmu":
-        return Prediction(_two(1.0 / (1.0 + np.exp(-gmu_logit(models, out)))))
+        lp = _late_log_probs(models, out)
+        return _from_logit((lp[:, 1] - lp[:, 0]) / models.temperatures.get("late", 1.0))
+    if cond.rule in ("gmu", "gmu_clean", "gmu_temp"):
+        z = gmu_logit(models, out, cond.rule == "gmu_clean")
+        return _from_logit(z / (models.temperatures.get("gmu", 1.0) if cond.rule == "gmu_temp" else 1.0))
     if cond.rule == "ds_gate":
         if gate is None:
             raise ValueError("condition (f) needs gate parameters")
@@ -147,7 +189,9 @@ def metrics_of(pred: Prediction, labels: np.ndarray, ece_bins: int) -> dict[str,
     out = {
         "accuracy": accuracy(p, labels), "macro_f1": macro_f1(p, labels, num_classes=2),
         "ece": ece(p, labels, n_bins=ece_bins), "nll": nll(p, labels), "brier": brier(p, labels),
-        "uauc_entropy": _safe(uauc(entropy(p), err)),
+        "uauc_entropy": _safe(uauc(entropy_from_log_probs(pred.log_probs) if pred.log_probs is not None
+                                   else entropy(p), err)),
+        "saturated_fraction": float(np.mean((p == 0.0) | (p == 1.0))),
         "uauc_vacuity": _safe(uauc(pred.vacuity, err)) if pred.vacuity is not None else None,
     }
     if pred.conflict is not None:

@@ -7,7 +7,6 @@ specs and noise seeds), fusion and gate settings, sweep, conflict study and boot
 """
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 from typing import Any, Literal
 
@@ -33,21 +32,26 @@ class DatasetConfig(_Model):
                                   description="render video at this size and resize to video_px (None: video_px)")
 
     @model_validator(mode="after")
-    def _one_source(self) -> "DatasetConfig":
+    def _one_source(self) -> DatasetConfig:
         if (self.generate is None) == (self.path is None):
             raise ValueError("give exactly one of dataset.generate (a generation config) or dataset.path (a folder)")
         return self
 
 
 class SplitConfig(_Model):
-    """Clip-level split, stratified by label; test clips are never used to choose anything."""
+    """Scene-disjoint split; test scenes are never used to choose anything.
 
+    ``source: dataset`` keeps a generated dataset's own scene split (recorded per clip); otherwise
+    (or for data without one) ``unit`` groups (scenes, or single clips) are assigned by fraction."""
+
+    source: Literal["dataset", "fractions"] = "dataset"
+    unit: Literal["scene", "clip"] = "scene"
     seed: int = Field(default=42, ge=0)
     val_fraction: float = Field(default=0.2, gt=0.0, lt=1.0)
     test_fraction: float = Field(default=0.3, gt=0.0, lt=1.0)
 
     @model_validator(mode="after")
-    def _fractions(self) -> "SplitConfig":
+    def _fractions(self) -> SplitConfig:
         if self.val_fraction + self.test_fraction >= 1.0:
             raise ValueError("val_fraction + test_fraction must be < 1")
         return self
@@ -56,10 +60,19 @@ class SplitConfig(_Model):
 class ModelsConfig(_Model):
     """Backbone sizes, the unimodal training loop and the stage-2 fusion heads."""
 
-    seed: int = Field(default=0, ge=0)
+    seeds: list[int] = Field(default=[0, 1, 2], min_length=1, description="training seeds (>= 3 for a training-variance +-)")
     width: int = Field(default=8, ge=2, le=256)
     embedding: int = Field(default=32, ge=4, le=1024)
-    video_pool: int = Field(default=4, ge=1, le=16)
+    video_pool: int = Field(default=4, ge=1, le=8, description="stride of the first (full-resolution) video conv")
+    video_frames: int = Field(default=2, ge=1, le=7, description="frames of the 7 the video model uses")
+    torch_threads: int = Field(default=1, ge=1, le=64, description=(
+        "torch threads for training and inference: fixed (results do not depend on the machine's load); "
+        "1 avoids OpenMP spin-contention on a shared 2-core machine"))
+    fusion_fit: Literal["val_noisy", "train_clean"] = Field(default="val_noisy", description=(
+        "Late Fusion / GMU fitted on validation outputs under the test noise protocol (default) or on clean "
+        "train outputs; the other variant is always fitted too, as a labelled control"))
+    fusion_noise_seed: int = Field(default=7, ge=0, description="noise seed of the validation outputs the heads see")
+    temperature_bounds: tuple[float, float] = (0.05, 20.0)
     train: TrainConfig = Field(default_factory=TrainConfig)
     fusion_epochs: int = Field(default=200, ge=1, le=10000)
     fusion_lr: float = Field(default=0.02, gt=0.0)
@@ -74,7 +87,7 @@ class NoiseEntry(_Model):
     params: dict[str, Any] = Field(default_factory=dict)
 
     @model_validator(mode="after")
-    def _known(self) -> "NoiseEntry":
+    def _known(self) -> NoiseEntry:
         import degradations
 
         if self.name not in degradations.REGISTRY:
@@ -90,8 +103,8 @@ class ProtocolConfig(_Model):
     audio: list[NoiseEntry] = Field(default_factory=lambda: [NoiseEntry(name="audio.white_noise", params={"snr_db": 10.0})])
     video: list[NoiseEntry] = Field(default_factory=lambda: [NoiseEntry(name="video.gaussian_noise", params={"sigma": 0.18})])
     rf_spec: list[NoiseEntry] = Field(default_factory=lambda: [
-        NoiseEntry(name="rf.spec_pink_noise", params={"snr_db": 20.0}),
-        NoiseEntry(name="rf.spec_time_mask", params={"mask_fraction": 0.05})])
+        NoiseEntry(name="rf.spec_pink_noise", params={"snr_db": 0.0}),
+        NoiseEntry(name="rf.spec_time_mask", params={"mask_fraction": 0.3})])
     rf_iq: list[NoiseEntry] = Field(default_factory=lambda: [NoiseEntry(name="rf.awgn", params={"snr_db": 20.0})])
 
 
@@ -122,20 +135,62 @@ class SweepConfig(_Model):
     n_seeds: int | None = Field(default=None, ge=1, description="first n noise seeds (None: all)")
 
 
-class ConflictConfig(_Model):
-    """Conflict programs applied to every test clip over [onset, onset + duration) of the clip."""
+class SwapProgram(_Model):
+    """A twin-swap conflict program (degradations.schedule.SWAP_PROGRAMS) at a strength."""
 
-    programs: list[Literal["audio_masked", "rf_silent", "rgb_blind", "decoy"]] = Field(
-        default=["audio_masked", "rf_silent", "rgb_blind", "decoy"], min_length=1)
+    name: str
+    strength: float = Field(default=1.0, gt=0.0, le=1.0, description="1 strongly wrong, < 1 weakly wrong")
+
+    @model_validator(mode="after")
+    def _known(self) -> SwapProgram:
+        from degradations.schedule import SWAP_PROGRAMS
+
+        if self.name not in SWAP_PROGRAMS:
+            raise ValueError(f"unknown conflict program {self.name!r}; known: {sorted(SWAP_PROGRAMS)}")
+        return self
+
+    @property
+    def key(self) -> str:
+        return self.name if self.strength == 1.0 else f"{self.name}@{self.strength:g}"
+
+
+def _default_swaps() -> list[SwapProgram]:
+    names = ["video_occluded", "audio_drowned", "rf_autonomous", "video_decoy", "audio_decoy", "rf_decoy",
+             "audio_rf_blind", "audio_rf_decoy", "video_rf_decoy"]
+    return [SwapProgram(name=n) for n in names] + [SwapProgram(name="video_decoy", strength=0.5),
+                                                   SwapProgram(name="audio_rf_decoy", strength=0.5)]
+
+
+class ConflictConfig(_Model):
+    """Conflict study over [onset, onset + duration) of every test clip. ``swaps``: twin-swap
+    programs (need a dataset with counterfactual twins); ``programs``: the older degradation-based
+    programs, run and measured the same way when listed (empty by default: they proved inert)."""
+
+    swaps: list[SwapProgram] = Field(default_factory=_default_swaps)
+    programs: list[Literal["audio_masked", "rf_silent", "rgb_blind", "decoy"]] = Field(default_factory=list)
     onset_fraction: float = Field(default=0.25, ge=0.0, lt=1.0)
     duration_fraction: float = Field(default=0.5, gt=0.0, le=1.0)
     severity: float = Field(default=5.0, gt=0.0, le=5.0)
+    min_flip_rate: float = Field(default=0.5, ge=0.0, le=1.0, description="a program below this is reported as not biting")
+    inert_flip_rate: float = Field(default=0.05, ge=0.0, le=1.0, description="a program below this is marked inert")
 
 
 class BootstrapConfig(_Model):
+    """Statistics of paired comparisons: clustered bootstrap CI, sign-flip permutation p, MDE."""
+
     n_resamples: int = Field(default=2000, ge=100, le=100000)
     confidence: float = Field(default=0.95, gt=0.5, lt=1.0)
     seed: int = Field(default=42, ge=0)
+    n_permutations: int = Field(default=10000, ge=100, le=1000000)
+    effect_of_interest: float = Field(default=0.05, gt=0.0, le=1.0, description=(
+        "'no difference' is claimed only when the MDE (80 % power) is below this accuracy difference"))
+
+
+class AuditConfig(_Model):
+    """Shortcut audit settings (target-blind baselines fitted on train, scored on test)."""
+
+    enabled: bool = True
+    min_segments: int = Field(default=20, ge=2, description="per class, for a baseline to be scored")
 
 
 class ExperimentConfig(_Model):
@@ -151,6 +206,7 @@ class ExperimentConfig(_Model):
     sweep: SweepConfig = Field(default_factory=SweepConfig)
     conflict: ConflictConfig = Field(default_factory=ConflictConfig)
     bootstrap: BootstrapConfig = Field(default_factory=BootstrapConfig)
+    audit: AuditConfig = Field(default_factory=AuditConfig)
     ece_bins: int = Field(default=15, ge=2, le=100)
 
 
@@ -173,45 +229,20 @@ def load_experiment_config(source: str | Path | dict | ExperimentConfig) -> Expe
     return cfg
 
 
-_DEMO_CLIPS: list[dict[str, Any]] = [
-    {"scenario": "clear_day_quad", "count": 5, "ambience": {"wind_db": 42, "birdsong_db": 38}},
-    {"scenario": "out_of_view", "count": 4, "ambience": {"wind_db": 40, "traffic_db": 45}},
-    {"scenario": "fixed_wing_pass", "count": 3, "ambience": {"wind_db": 40}},
-    {"scenario": "low_elevation_haze", "group": "autonomous_far_hexa", "count": 4, "rf_silent": True,
-     "ambience": {"wind_db": 48, "gust_depth": 0.9}},
-    {"group": "birds", "count": 8, "ambience": {"wind_db": 40, "birdsong_db": 45}, "scenario": {
-        "name": "birds_near", "duration_s": 10.0,
-        "targets": [
-            {"name": "crow", "kind": "bird", "size_m": 0.5, "wingbeat_hz": 4.0,
-             "trajectory": {"kind": "flyby", "start_m": [-30, 60, 15], "velocity_mps": [6, 0, 0.5]}},
-            {"name": "gull", "kind": "bird", "size_m": 0.7, "wingbeat_hz": 3.0,
-             "trajectory": {"kind": "orbit", "center_m": [5, 80, 25], "radius_m": 12, "speed_mps": 7}}],
-        "camera_rig": {"position_m": [0, 0, 1.5], "look_at_m": [0, 70, 20], "rgb": {"hfov_deg": 40}}}},
-    {"group": "airliner_rain", "count": 8, "ambience": {"wind_db": 38, "rain_db": 50, "traffic_db": 42}, "scenario": {
-        "name": "distant_airliner", "duration_s": 10.0,
-        "targets": [{"name": "jet", "kind": "airliner", "size_m": 40.0,
-                     "trajectory": {"kind": "flyby", "start_m": [-3000, 6000, 2500], "velocity_mps": [120, 0, 0]}}],
-        "camera_rig": {"position_m": [0, 0, 1.5], "look_at_m": [-1800, 6000, 2500], "rgb": {"hfov_deg": 10}}}},
-]
-
 DEMO_CONFIG: dict[str, Any] = {
     "name": "demo",
-    "dataset": {"generate": {"name": "demo_trident", "description": "evids demo: 16 drone + 16 background clips of 4 s",
-                             "clip_duration_s": 4.0, "save_iq": True, "clips": _DEMO_CLIPS},
-                "seed": 7},
-    "split": {"seed": 42, "val_fraction": 0.25, "test_fraction": 0.35},
+    "dataset": {"generate": "trident_scenes", "seed": 7},
+    "split": {"source": "dataset"},
+    "sweep": {"n_seeds": 1},
 }
 
-QUICK_CONFIG: dict[str, Any] = copy.deepcopy(DEMO_CONFIG)
-QUICK_CONFIG.update({
+QUICK_CONFIG: dict[str, Any] = {
     "name": "demo_quick",
-    "models": {"train": {"epochs": 4, "patience": 2, "kl_anneal_epochs": 2.0}, "fusion_epochs": 60},
+    "dataset": {"generate": "trident_scenes_quick", "seed": 7},
+    "split": {"source": "dataset"},
+    "models": {"seeds": [0, 1], "train": {"epochs": 3, "patience": 2, "kl_anneal_epochs": 2.0}, "fusion_epochs": 60},
     "gate": {"tau_high": [0.3, 0.5, 0.7], "tau_low": [0.1, 0.2], "n": [1, 3]},
     "sweep": {"severities": [0.0, 3.0, 5.0], "n_seeds": 1},
-    "bootstrap": {"n_resamples": 300},
-})
-_QUICK_COUNTS = (2, 1, 1, 1, 3, 2)            # 5 drone + 5 background clips
-QUICK_CONFIG["dataset"] = {**DEMO_CONFIG["dataset"], "clip_duration_s": 1.0, "render_px": 56,
-                           "generate": {**DEMO_CONFIG["dataset"]["generate"], "name": "demo_quick_trident",
-                                        "description": "evids demo --quick: 5 drone + 5 background clips of 1 s",
-                                        "clips": [{**c, "count": k} for c, k in zip(_DEMO_CLIPS, _QUICK_COUNTS)]}}
+    "protocol": {"noise_seeds": [42, 123]},
+    "bootstrap": {"n_resamples": 300, "n_permutations": 2000},
+}

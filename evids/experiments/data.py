@@ -29,6 +29,16 @@ class ClipArrays:
     sample_rate_hz: float
     iq: np.ndarray | None = None     # (S, n) complex64 or None
     observability: dict[str, np.ndarray] = field(default_factory=dict)
+    scene: str = ""                  # split unit: the drawn scene (generated) or the scenario folder
+    split: str | None = None         # the dataset's own split assignment, when it carries one
+    twin: str | None = None          # clip_id of the counterfactual twin (same scene, drone swapped)
+    drone_px: np.ndarray | None = None   # (S,) apparent drone size per segment (px), generated data only
+    conditions: dict = field(default_factory=dict)
+    snr_db: dict[str, np.ndarray] = field(default_factory=dict)   # per-segment truth: audio, rf link (NaN: none)
+
+    def __post_init__(self) -> None:
+        if not self.scene:
+            self.scene = self.clip_id
 
     @property
     def n_segments(self) -> int:
@@ -111,37 +121,102 @@ def load_clips(root: Path, progress: bool = True) -> list[ClipArrays]:
         obs = {}
         if segs[0].observability is not None:
             obs = {m: np.array([s.observability[m] for s in segs]) for m in ("audio", "video", "rf")}
+        info = _clip_info(clip, len(segs))
         out.append(ClipArrays(
             clip_id=clip.clip_id, label=int(segs[0].label),
             mfcc=np.stack([s.audio_mfcc for s in segs]).astype(np.float32),
             video=np.stack([s.video for s in segs]).astype(np.uint8),
             rf=np.stack([s.rf if s.rf.ndim == 2 else s.rf.mean(-1) for s in segs]).astype(np.float32),
-            audio=audio.mean(axis=1), sample_rate_hz=float(rate), iq=iq, observability=obs))
+            audio=audio.mean(axis=1), sample_rate_hz=float(rate), iq=iq, observability=obs, **info))
     return out
 
 
+def _clip_info(clip, n_segments: int) -> dict:
+    """Scene, split, twin and drone size of a clip from its labels JSON (generated data), else the
+    scenario folder as the scene (a TRIDENT scenario folder is one recording session)."""
+    public = {"Train": "train", "Test": "test"}.get(getattr(clip, "split", None) or "")
+    info: dict = {"scene": f"{clip.label}/{clip.scenario}", "split": public, "twin": None, "drone_px": None,
+                  "conditions": {}, "snr_db": {}}
+    if clip.labels_json is None or not Path(clip.labels_json).is_file():
+        return info
+    try:
+        meta = json.loads(Path(clip.labels_json).read_text())
+    except (OSError, json.JSONDecodeError):
+        return info
+    if meta.get("scene"):
+        info["scene"] = str(meta["scene"])
+    if meta.get("split") in SPLITS:
+        info["split"] = meta["split"]
+    if meta.get("twin") is not None:
+        other = "Background" if clip.label == "Drone" else "Drone"
+        info["twin"] = f"{other}/{clip.scenario}/{meta['twin']}"
+    if meta.get("drone_px") is not None:
+        info["drone_px"] = np.asarray(meta["drone_px"], np.float64)[:n_segments]
+    info["conditions"] = dict(meta.get("conditions") or {})
+    seg = meta.get("segments") or {}
+    snr = {}
+    for key, name in (("audio_snr_db", "audio"), ("rf_link_snr_db", "rf")):
+        if isinstance(seg.get(key), list):
+            snr[name] = np.array([np.nan if v is None else float(v) for v in seg[key]], np.float64)[:n_segments]
+    info["snr_db"] = snr
+    return info
+
+
 def split_clips(clips: list[ClipArrays], cfg: SplitConfig) -> dict[str, list[int]]:
-    """Stratified clip-level split; every split gets >= 1 clip of each label that has >= 3 clips."""
+    """Scene-disjoint split: every clip of one scene (a drone clip and its twin, or one scenario
+    folder) lands in the same split. ``cfg.source == "dataset"`` keeps the dataset's own assignment
+    when every clip carries one; otherwise scenes are shuffled (seeded) and assigned by fraction,
+    stratified by the scene's label set. Too few scenes for three disjoint splits -> UserInputError.
+    """
+    if cfg.source == "dataset" and clips and all(c.split is not None for c in clips) and \
+            all(any(c.split == s for c in clips) for s in SPLITS):
+        out = {s: sorted(i for i, c in enumerate(clips) if c.split == s) for s in SPLITS}
+    else:              # no recorded split, or one without validation clips (the public Train/Test)
+        out = _split_by_scene(clips, cfg)
+    for s in SPLITS:
+        if not out[s]:
+            raise UserInputError(f"split: the {s} split is empty with {len(clips)} clips in "
+                                 f"{len({c.scene for c in clips})} scenes; use more scenes")
+    check_scene_disjoint(clips, out)
+    return out
+
+
+def _split_by_scene(clips: list[ClipArrays], cfg: SplitConfig) -> dict[str, list[int]]:
+    groups: dict[str, list[int]] = {}
+    for i, c in enumerate(clips):
+        groups.setdefault(c.scene if cfg.unit == "scene" else c.clip_id, []).append(i)
+    strata: dict[tuple, list[str]] = {}
+    for name in sorted(groups):
+        strata.setdefault(tuple(sorted({clips[i].label for i in groups[name]})), []).append(name)
+    if len(groups) < len(SPLITS):
+        raise UserInputError(f"split.unit: {cfg.unit!r} splits need >= {len(SPLITS)} {cfg.unit} groups to keep "
+                             f"train/val/test disjoint, the dataset has {len(groups)}")
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x5B117]))
     out: dict[str, list[int]] = {s: [] for s in SPLITS}
-    for label in sorted({c.label for c in clips}):
-        idx = np.array([i for i, c in enumerate(clips) if c.label == label])
-        idx = idx[rng.permutation(idx.size)]
-        n = idx.size
-        n_test = int(round(cfg.test_fraction * n))
-        n_val = int(round(cfg.val_fraction * n))
+    for key in sorted(strata):
+        names = strata[key]
+        names = [names[j] for j in rng.permutation(len(names))]
+        n = len(names)
+        n_test, n_val = int(round(cfg.test_fraction * n)), int(round(cfg.val_fraction * n))
         if n >= 3:
             n_test, n_val = max(1, n_test), max(1, n_val)
             n_test = min(n_test, n - 2)
             n_val = min(n_val, n - n_test - 1)
-        out["test"] += idx[:n_test].tolist()
-        out["val"] += idx[n_test:n_test + n_val].tolist()
-        out["train"] += idx[n_test + n_val:].tolist()
-    for s in SPLITS:
-        out[s].sort()
-        if not out[s]:
-            raise UserInputError(f"split: the {s} split is empty with {len(clips)} clips; use more clips")
-    return out
+        for j, name in enumerate(names):
+            s = "test" if j < n_test else "val" if j < n_test + n_val else "train"
+            out[s] += groups[name]
+    return {s: sorted(v) for s, v in out.items()}
+
+
+def check_scene_disjoint(clips: list[ClipArrays], split: dict[str, list[int]]) -> None:
+    """Raise UserInputError when one scene appears in two splits (the split unit is recorded)."""
+    seen: dict[str, str] = {}
+    for s, idx in split.items():
+        for i in idx:
+            prev = seen.setdefault(clips[i].scene, s)
+            if prev != s:
+                raise UserInputError(f"split: scene {clips[i].scene!r} appears in both {prev} and {s}; "
+                                     "splits must be scene-disjoint")
 
 
 def prepare(cfg_dataset: DatasetConfig, cfg_split: SplitConfig, run_dir: Path, progress: bool = True) -> Prepared:
@@ -167,6 +242,11 @@ def stack(clips: list[ClipArrays], idx: list[int], key: str) -> np.ndarray:
 
 def labels_of(clips: list[ClipArrays], idx: list[int]) -> np.ndarray:
     return np.concatenate([np.full(clips[i].n_segments, clips[i].label, np.int64) for i in idx])
+
+
+def scene_ids_of(clips: list[ClipArrays], idx: list[int]) -> np.ndarray:
+    """Per-segment scene id: the cluster unit of every test statistic (twins share a scene)."""
+    return np.concatenate([np.full(clips[i].n_segments, clips[i].scene, dtype=object) for i in idx])
 
 
 def clip_ids_of(clips: list[ClipArrays], idx: list[int]) -> np.ndarray:

@@ -110,3 +110,62 @@ def conflict_clip(clip: ClipArrays, clip_index: int, noise_seed: int, program: s
                              "rf": np.asarray(comp.get("rf_spec", [False] * s), bool)},
              "conflict": np.asarray(record["conflict"], bool)}
     return Degraded(mfcc, video, rf), flags
+
+
+_OBS_KEY = {"video": "video", "audio": "audio", "rf": "rf"}
+
+
+def program_window(n_segments: int, onset_fraction: float, duration_fraction: float) -> np.ndarray:
+    """(S,) bool: segments inside [onset, onset + duration) of the clip."""
+    t = np.arange(n_segments) * SEGMENT_S
+    dur = n_segments * SEGMENT_S
+    a, b = onset_fraction * dur, (onset_fraction + duration_fraction) * dur
+    return (t >= a - 1e-9) & (t < b - 1e-9)
+
+
+def swap_clip(clip: ClipArrays, donor: ClipArrays, modalities: tuple[str, ...], strength: float,
+              window: np.ndarray, rf_range_db: float = 60.0) -> Degraded:
+    """The clip with each listed modality's stream moved to its twin's (``donor``) inside ``window``.
+
+    Audio is blended on the waveform (MFCC recomputed), video per frame, RF on the spectrogram in
+    power; outside the window every stream is the clip's own.
+    """
+    from degradations.crossmodal import blend_signature
+    from simulator.formats.trident import mfcc_segments
+
+    if donor.n_segments != clip.n_segments:
+        raise ValueError(f"twin {donor.clip_id} has {donor.n_segments} segments, {clip.clip_id} {clip.n_segments}")
+    mfcc, vid, rf = clip.mfcc, clip.video, clip.rf
+    w = np.asarray(window, bool)
+    if "video" in modalities:
+        vid = vid.copy()
+        vid[w] = blend_signature(clip.video[w], donor.video[w], strength, "rgb")
+    if "audio" in modalities:
+        seg = int(round(SEGMENT_S * clip.sample_rate_hz))
+        mask = np.repeat(w, seg)[: clip.audio.size]
+        mask = np.pad(mask, (0, clip.audio.size - mask.size))
+        n = min(clip.audio.size, donor.audio.size)
+        wav = clip.audio.copy()
+        sel = mask[:n]
+        wav[:n][sel] = blend_signature(clip.audio[:n][sel], donor.audio[:n][sel], strength, "audio")
+        mfcc = mfcc_segments(wav, clip.sample_rate_hz, clip.n_segments)
+        mfcc = np.where(w[:, None, None, None], mfcc, clip.mfcc)     # untouched segments bit-identical
+    if "rf" in modalities:
+        rf = clip.rf.copy()
+        own, don = image_to_db(clip.rf[w], rf_range_db), image_to_db(donor.rf[w], rf_range_db)
+        rf[w] = db_to_image(blend_signature(own, don, strength, "rf_spec"), rf_range_db)
+    return Degraded(mfcc.astype(np.float32), vid, rf.astype(np.float32))
+
+
+def targeted_segments(clip: ClipArrays, donor: ClipArrays, kind: str, modalities: tuple[str, ...],
+                      window: np.ndarray) -> np.ndarray:
+    """Segments a program really targets: inside the window where the drone clip (the clip itself
+    when blinding, the donor twin for a decoy) carries evidence in every compromised modality
+    (simulator observability truth); without truth, the whole window."""
+    drone = clip if kind == "blind" else donor
+    mask = np.asarray(window, bool).copy()
+    for m in modalities:
+        obs = drone.observability.get(_OBS_KEY[m])
+        if obs is not None and len(obs) == len(mask):
+            mask &= np.asarray(obs, bool)
+    return mask

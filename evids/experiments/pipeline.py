@@ -3,7 +3,7 @@ sigmoid/evidential), stage-2 fusion heads on frozen backbones (Late Fusion, GMU)
 for the sigmoid control, and batched encoding of (degraded) inputs into per-modality outputs."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -26,12 +26,20 @@ def model_seed(base: int, modality: str, head: str) -> tuple[int, int]:
 
 @dataclass
 class Models:
-    """Everything trained: unimodal models, fusion heads and the control's temperature."""
+    """Everything trained with one training seed: unimodal models, fusion heads (fitted on noisy
+    validation outputs, and clean-fitted controls) and temperatures with their bound flags."""
 
     unimodal: dict[tuple[str, str], UnimodalModel]
     late: LateFusion
     gmu: GMU
-    temperature: float
+    late_clean: LateFusion | None = None
+    gmu_clean: GMU | None = None
+    temperatures: dict[str, float] = field(default_factory=dict)
+    temperature_flags: dict[str, str | None] = field(default_factory=dict)
+
+    @property
+    def temperature(self) -> float:
+        return self.temperatures.get("late", 1.0)
 
 
 @dataclass
@@ -43,7 +51,7 @@ class Outputs:
     alpha: np.ndarray
     emb: np.ndarray
 
-    def replace(self, m: int, other: "Outputs") -> "Outputs":
+    def replace(self, m: int, other: Outputs) -> Outputs:
         logit, alpha, emb = self.logit.copy(), self.alpha.copy(), self.emb.copy()
         logit[m], alpha[m], emb[m] = other.logit[m], other.alpha[m], other.emb[m]
         return Outputs(logit, alpha, emb)
@@ -68,15 +76,17 @@ def encode(models: Models, mfcc: np.ndarray, video: np.ndarray, rf: np.ndarray,
     return Outputs(logit, alpha, emb)
 
 
-def late_probs(models: Models, out: Outputs) -> np.ndarray:
-    """Late Fusion P(class 1) (N,)."""
+def late_probs(models: Models, out: Outputs, clean_fit: bool = False) -> np.ndarray:
+    """Late Fusion P(class 1) (N,); ``clean_fit`` uses the control fitted on clean train outputs."""
+    head = models.late_clean if clean_fit else models.late
     with torch.no_grad():
-        return models.late(torch.from_numpy(out.logit)).double().numpy()
+        return head(torch.from_numpy(out.logit)).double().numpy()
 
 
-def gmu_logit(models: Models, out: Outputs) -> np.ndarray:
+def gmu_logit(models: Models, out: Outputs, clean_fit: bool = False) -> np.ndarray:
+    head = models.gmu_clean if clean_fit else models.gmu
     with torch.no_grad():
-        return models.gmu([torch.from_numpy(e) for e in out.emb]).squeeze(-1).double().numpy()
+        return head([torch.from_numpy(e) for e in out.emb]).squeeze(-1).double().numpy()
 
 
 def _train_fusion(module: torch.nn.Module, forward, y: np.ndarray, epochs: int, lr: float, logits_out: bool) -> list[float]:
@@ -96,76 +106,112 @@ def _train_fusion(module: torch.nn.Module, forward, y: np.ndarray, epochs: int, 
     return losses
 
 
-def train_all(cfg: ExperimentConfig, prep: Prepared, progress: bool = True) -> tuple[Models, dict]:
-    """Stage 1 (six unimodal models) and stage 2 (fusion heads on frozen train-split outputs)."""
-    from evids.metrics import fit_temperature
+def training_seed_base(seed: int) -> int:
+    return int(seed)
+
+
+def train_all(cfg: ExperimentConfig, prep: Prepared, progress: bool = True, train_seed: int = 0,
+              val_noisy: dict[str, np.ndarray] | None = None) -> tuple[Models, dict]:
+    """Stage 1 (six unimodal models, seed ``train_seed``) and stage 2: Late Fusion / GMU fitted on
+    validation outputs under the test noise protocol (``val_noisy`` inputs) and, as a labelled
+    control, on clean train outputs; temperatures for every sigmoid model and fusion head."""
+    from evids.metrics import fit_temperature_flagged
 
     tr, va = prep.split["train"], prep.split["val"]
     y_tr, y_va = labels_of(prep.clips, tr), labels_of(prep.clips, va)
     x = {s: {k: stack(prep.clips, idx, k) for k in ("mfcc", "video", "rf")} for s, idx in (("train", tr), ("val", va))}
     mc = cfg.models
     unimodal: dict[tuple[str, str], UnimodalModel] = {}
-    record: dict = {"unimodal": {}}
+    record: dict = {"train_seed": int(train_seed), "unimodal": {}}
     jobs = [(m, h) for m in MODALITIES for h in HEADS]
     if progress:
         from rich.progress import track
 
-        jobs = track(jobs, description="training unimodal models", total=len(jobs))
+        jobs = track(jobs, description=f"training unimodal models (seed {train_seed})", total=len(jobs))
     key = {"audio": "mfcc", "video": "video", "rf": "rf"}
     for modality, head in jobs:
-        init_seed, order_seed = model_seed(mc.seed, modality, head)
-        model = build_model(modality, head, init_seed, mc.width, mc.embedding, mc.video_pool)
+        init_seed, order_seed = model_seed(training_seed_base(train_seed), modality, head)
+        model = build_model(modality, head, init_seed, mc.width, mc.embedding, mc.video_pool, mc.video_frames)
         res: TrainResult = train_model(model, x["train"][key[modality]], y_tr, x["val"][key[modality]], y_va,
                                        mc.train, order_seed)
         unimodal[(modality, head)] = model
         record["unimodal"][f"{modality}/{head}"] = {"init_seed": init_seed, "order_seed": order_seed, **res.to_json()}
-    stub = Models(unimodal, LateFusion(3), GMU([mc.embedding] * 3, mc.gmu_hidden, 1), 1.0)
+    stub = Models(unimodal, LateFusion(3), GMU([mc.embedding] * 3, mc.gmu_hidden, 1))
     out_tr = encode(stub, x["train"]["mfcc"], x["train"]["video"], x["train"]["rf"])
-    fs = int(np.random.SeedSequence([mc.seed, 99]).generate_state(1, dtype=np.uint32)[0])
-    with seeded_init(fs):
-        late = LateFusion(3)
-        gmu = GMU([mc.embedding] * 3, mc.gmu_hidden, 1, gate="sigmoid")
-    lt = torch.from_numpy(out_tr.logit).float()
-    late_loss = _train_fusion(late, lambda: late(lt), y_tr, mc.fusion_epochs, mc.fusion_lr, logits_out=False)
-    et = [torch.from_numpy(e) for e in out_tr.emb]
-    gmu_loss = _train_fusion(gmu, lambda: gmu(et).squeeze(-1), y_tr, mc.fusion_epochs, mc.fusion_lr, logits_out=True)
-    late.eval()
-    gmu.eval()
-    models = Models(unimodal, late, gmu, 1.0)
-    out_va = encode(models, x["val"]["mfcc"], x["val"]["video"], x["val"]["rf"])
-    p_va = np.clip(late_probs(models, out_va), 1e-6, 1 - 1e-6)
-    models.temperature = float(fit_temperature(np.log(p_va / (1 - p_va)), y_va, t_min=0.05, t_max=200.0))
-    record["fusion"] = {"fusion_seed": fs, "late_fusion_weights": late.weights.detach().numpy().round(4).tolist(),
-                        "late_final_loss": round(late_loss[-1], 6), "gmu_final_loss": round(gmu_loss[-1], 6),
-                        "temperature_fitted_on": "val", "temperature": round(models.temperature, 5)}
+    noisy = val_noisy if val_noisy is not None else x["val"]
+    out_va = encode(stub, noisy["mfcc"], noisy["video"], noisy["rf"])
+    fs = int(np.random.SeedSequence([int(train_seed), 99]).generate_state(1, dtype=np.uint32)[0])
+    heads = {}
+    for name, out, y in (("val_noisy", out_va, y_va), ("train_clean", out_tr, y_tr)):
+        with seeded_init(fs):
+            late = LateFusion(3)
+            gmu = GMU([mc.embedding] * 3, mc.gmu_hidden, 1, gate="sigmoid")
+        lt = torch.from_numpy(out.logit).float()
+        late_loss = _train_fusion(late, lambda: late(lt), y, mc.fusion_epochs, mc.fusion_lr, logits_out=False)
+        et = [torch.from_numpy(e) for e in out.emb]
+        gmu_loss = _train_fusion(gmu, lambda: gmu(et).squeeze(-1), y, mc.fusion_epochs, mc.fusion_lr, logits_out=True)
+        late.eval()
+        gmu.eval()
+        heads[name] = (late, gmu)
+        record.setdefault("fusion", {})[name] = {
+            "late_fusion_weights": late.weights.detach().numpy().round(4).tolist(),
+            "late_final_loss": round(late_loss[-1], 6), "gmu_final_loss": round(gmu_loss[-1], 6)}
+    main = mc.fusion_fit
+    control = "train_clean" if main == "val_noisy" else "val_noisy"
+    models = Models(unimodal, heads[main][0], heads[main][1], heads[control][0], heads[control][1])
+    # temperatures: on validation outputs under the test protocol, with a fresh noise draw for the heads
+    t_lo, t_hi = mc.temperature_bounds
+    temps, flags = {}, {}
+    for m, modality in enumerate(MODALITIES):
+        temps[modality], flags[modality] = fit_temperature_flagged(out_va.logit[m], y_va, t_lo, t_hi)
+    p_va = np.clip(late_probs(models, out_va), 1e-12, 1 - 1e-12)
+    temps["late"], flags["late"] = fit_temperature_flagged(np.log(p_va / (1 - p_va)), y_va, t_lo, t_hi)
+    temps["gmu"], flags["gmu"] = fit_temperature_flagged(gmu_logit(models, out_va), y_va, t_lo, t_hi)
+    models.temperatures, models.temperature_flags = temps, flags
+    record["fusion"].update({"fusion_seed": fs, "fitted_on": main, "control": control,
+                             "temperature_fitted_on": "val (test noise protocol)",
+                             "temperature_bounds": [t_lo, t_hi],
+                             "temperatures": {k: round(v, 5) for k, v in temps.items()},
+                             "temperature_at_bound": flags})
     return models, record
 
 
-def save_models(models: Models, path) -> None:
-    """Atomic torch.save of every state dict."""
+def _state(models: Models) -> dict:
+    return {"unimodal": {f"{m}/{h}": mod.state_dict() for (m, h), mod in models.unimodal.items()},
+            "late": models.late.state_dict(), "gmu": models.gmu.state_dict(),
+            "late_clean": models.late_clean.state_dict(), "gmu_clean": models.gmu_clean.state_dict(),
+            "temperatures": models.temperatures, "temperature_flags": models.temperature_flags}
+
+
+def save_models(models: list[Models], path) -> None:
+    """Atomic torch.save of every training seed's state dicts."""
     import os
 
-    state = {"unimodal": {f"{m}/{h}": mod.state_dict() for (m, h), mod in models.unimodal.items()},
-             "late": models.late.state_dict(), "gmu": models.gmu.state_dict(), "temperature": models.temperature}
     tmp = f"{path}.tmp-{os.getpid()}"
-    torch.save(state, tmp)
+    torch.save({"runs": [_state(m) for m in models]}, tmp)
     os.replace(tmp, path)
 
 
-def load_models(cfg: ExperimentConfig, path) -> Models:
-    state = torch.load(path, map_location="cpu", weights_only=True)
+def _load_one(cfg: ExperimentConfig, state: dict) -> Models:
     mc = cfg.models
     unimodal = {}
     for key, sd in state["unimodal"].items():
         m, h = key.split("/")
-        model = build_model(m, h, 0, mc.width, mc.embedding, mc.video_pool)
+        model = build_model(m, h, 0, mc.width, mc.embedding, mc.video_pool, mc.video_frames)
         model.load_state_dict(sd)
         model.eval()
         unimodal[(m, h)] = model
-    with seeded_init(0):
-        late, gmu = LateFusion(3), GMU([mc.embedding] * 3, mc.gmu_hidden, 1, gate="sigmoid")
-    late.load_state_dict(state["late"])
-    gmu.load_state_dict(state["gmu"])
-    late.eval()
-    gmu.eval()
-    return Models(unimodal, late, gmu, float(state["temperature"]))
+    heads = []
+    for name in ("late", "gmu", "late_clean", "gmu_clean"):
+        with seeded_init(0):
+            mod = LateFusion(3) if name.startswith("late") else GMU([mc.embedding] * 3, mc.gmu_hidden, 1, gate="sigmoid")
+        mod.load_state_dict(state[name])
+        mod.eval()
+        heads.append(mod)
+    return Models(unimodal, *heads, temperatures=dict(state["temperatures"]),
+                  temperature_flags=dict(state["temperature_flags"]))
+
+
+def load_models(cfg: ExperimentConfig, path) -> list[Models]:
+    state = torch.load(path, map_location="cpu", weights_only=True)
+    return [_load_one(cfg, s) for s in state["runs"]]

@@ -23,8 +23,20 @@ from evids.experiments.conditions import (
     predict_condition,
 )
 from evids.experiments.config import ExperimentConfig, load_experiment_config
-from evids.experiments.data import Prepared, clip_ids_of, labels_of, prepare
-from evids.experiments.noise import conflict_clip, degrade_clip
+from evids.experiments.data import (
+    Prepared,
+    clip_ids_of,
+    labels_of,
+    prepare,
+    scene_ids_of,
+)
+from evids.experiments.noise import (
+    conflict_clip,
+    degrade_clip,
+    program_window,
+    swap_clip,
+    targeted_segments,
+)
 from evids.experiments.pipeline import (
     Models,
     Outputs,
@@ -34,7 +46,7 @@ from evids.experiments.pipeline import (
     train_all,
 )
 from evids.gating import GateParams, HysteresisGate, sweep_gates
-from evids.metrics import paired_bootstrap, uauc
+from evids.metrics import paired_bootstrap, paired_permutation_test
 from evids.models.backbones import MODALITIES
 from evids.runfolder import mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
@@ -64,7 +76,7 @@ class Context:
     run_dir: Path
     cfg: ExperimentConfig
     prep: Prepared
-    models: Models | None = None
+    models: list[Models] | None = None
     progress: bool = True
     cache: dict = field(default_factory=dict)
 
@@ -78,44 +90,66 @@ class Context:
     def clip_ids(self, split: str = "test") -> np.ndarray:
         return clip_ids_of(self.prep.clips, self.prep.split[split])
 
+    def scene_ids(self, split: str = "test") -> np.ndarray:
+        """Cluster unit of every statistic: the scene (a drone clip and its twin share one)."""
+        return scene_ids_of(self.prep.clips, self.prep.split[split])
+
+    @property
+    def runs(self) -> range:
+        return range(len(self.models or []))
+
     def has_iq(self) -> bool:
         return self.prep.rf_config is not None and all(self.prep.clips[i].iq is not None for i in self.test)
 
     def noise_kwargs(self, variant: str) -> dict:
-        p = self.cfg.protocol
-        kw: dict = {"rf_range_db": self.prep.rf_range_db, "rf_config": self.prep.rf_config}
-        if variant == "clean":
-            return kw
-        kw.update(audio=p.audio, video=p.video)
-        if variant == "all_spec":
-            kw["rf_spec"] = p.rf_spec
-        elif variant == "iq":
-            kw["rf_iq"] = p.rf_iq
-        return kw
+        return _noise_kwargs(self.cfg, self.prep, variant)
 
-    def outputs(self, variant: str, seed: int, split: str = "test", **override) -> Outputs:
-        """Per-modality outputs of a split under a noise variant and seed (cached)."""
-        key = (variant, seed, split, tuple(sorted((k, repr(v)) for k, v in override.items())))
+    def outputs(self, variant: str, seed: int, split: str = "test", run: int = 0, **override) -> Outputs:
+        """Per-modality outputs of a split under a noise variant and seed, for training run ``run`` (cached)."""
+        key = (variant, seed, split, run, tuple(sorted((k, repr(v)) for k, v in override.items())))
         if key in self.cache:
             return self.cache[key]
         kw = self.noise_kwargs(variant) if not override else {"rf_range_db": self.prep.rf_range_db,
                                                               "rf_config": self.prep.rf_config, **override}
-        parts = [degrade_clip(self.prep.clips[i], i, seed, **kw) for i in self.prep.split[split]]
+        pkey = ("inputs", variant, seed, split, key[-1])
+        parts = self.cache.get(pkey)
+        if parts is None:
+            parts = [degrade_clip(self.prep.clips[i], i, seed, **kw) for i in self.prep.split[split]]
+            parts = (np.concatenate([p.mfcc for p in parts]), np.concatenate([p.video for p in parts]),
+                     np.concatenate([p.rf for p in parts]))
+            self.cache[pkey] = parts
         only = tuple(m for m in MODALITIES if not override or any(
             k in override for k in {"audio": ("audio",), "video": ("video",), "rf": ("rf_spec", "rf_iq")}[m]))
-        out = encode(self.models, np.concatenate([p.mfcc for p in parts]), np.concatenate([p.video for p in parts]),
-                     np.concatenate([p.rf for p in parts]), only=only)
+        out = encode(self.models[run], *parts, only=only)
         if override:
-            base = self.outputs("clean", 0, split)
+            base = self.outputs("clean", 0, split, run)
             for m, modality in enumerate(MODALITIES):
                 if modality in only:
                     base = base.replace(m, out)
             out = base
         if variant == "clean" and not override:
             for s in self.cfg.protocol.noise_seeds:
-                self.cache[("clean", s, split, ())] = out
+                self.cache[("clean", s, split, run, ())] = out
         self.cache[key] = out
         return out
+
+    def drop_inputs(self) -> None:
+        """Free cached degraded inputs (outputs stay cached)."""
+        for k in [k for k in self.cache if isinstance(k, tuple) and k and k[0] == "inputs"]:
+            del self.cache[k]
+
+
+def _noise_kwargs(cfg: ExperimentConfig, prep: Prepared, variant: str) -> dict:
+    p = cfg.protocol
+    kw: dict = {"rf_range_db": prep.rf_range_db, "rf_config": prep.rf_config}
+    if variant == "clean":
+        return kw
+    kw.update(audio=p.audio, video=p.video)
+    if variant == "all_spec":
+        kw["rf_spec"] = p.rf_spec
+    elif variant == "iq":
+        kw["rf_iq"] = p.rf_iq
+    return kw
 
 
 def open_run(run_dir: Path, progress: bool = True, need_models: bool = True) -> Context:
@@ -128,6 +162,7 @@ def open_run(run_dir: Path, progress: bool = True, need_models: bool = True) -> 
     if need_models and not (run_dir / "models.pt").is_file():
         raise UserInputError(f"{str(run_dir)!r} has no trained models (models.pt); run `evids train` first")
     prep = prepare(cfg.dataset, cfg.split, run_dir, progress)
+    torch.set_num_threads(cfg.models.torch_threads)
     models = load_models(cfg, run_dir / "models.pt") if need_models else None
     return Context(run_dir, cfg, prep, models, progress)
 
@@ -150,13 +185,27 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
     prep = prepare(cfg.dataset, cfg.split, run_dir, progress)
     data_s = time.perf_counter() - t_data
     write_atomic(existing, resolved)
-    torch.set_num_threads(max(1, torch.get_num_threads()))
-    models, record = train_all(cfg, prep, progress)
+    torch.set_num_threads(cfg.models.torch_threads)
+    va = prep.split["val"]
+    parts = [degrade_clip(prep.clips[i], i, cfg.models.fusion_noise_seed, **_noise_kwargs(cfg, prep, "standard"))
+             for i in va]
+    val_noisy = {"mfcc": np.concatenate([p.mfcc for p in parts]), "video": np.concatenate([p.video for p in parts]),
+                 "rf": np.concatenate([p.rf for p in parts])}
+    models, records = [], []
+    for train_seed in cfg.models.seeds:
+        m, rec = train_all(cfg, prep, progress, train_seed, val_noisy)
+        models.append(m)
+        records.append(rec)
+    record = {"runs": records}
     save_models(models, run_dir / "models.pt")
     split = {s: [prep.clips[i].clip_id for i in idx] for s, idx in prep.split.items()}
     n_seg = {s: int(sum(prep.clips[i].n_segments for i in idx)) for s, idx in prep.split.items()}
+    scenes = {s: sorted({prep.clips[i].scene for i in idx}) for s, idx in prep.split.items()}
     train_info = {"dataset_root": str(prep.root), "generated": prep.generated, "split_seed": cfg.split.seed,
-                  "split": split, "segments": n_seg, "noise_seeds": cfg.protocol.noise_seeds,
+                  "split_source": "dataset" if all(c.split is not None for c in prep.clips) and
+                  cfg.split.source == "dataset" else "fractions", "split_unit": "scene",
+                  "split": split, "scenes": scenes, "n_scenes": {s: len(v) for s, v in scenes.items()},
+                  "segments": n_seg, "training_seeds": cfg.models.seeds, "noise_seeds": cfg.protocol.noise_seeds,
                   "hyper_parameters": cfg.models.model_dump(mode="json"), "training": record,
                   "data_seconds": round(data_s, 2), "versions": _versions(),
                   "torch_threads": torch.get_num_threads()}
@@ -186,76 +235,171 @@ def _gate_params(ctx: Context) -> tuple[GateParams, dict]:
     return ctx.cache["gate"]
 
 
+#: paired comparisons (A, B, name); the objective's effect is each modality's EDL vs sigmoid head
+COMPARISONS = (
+    ("d", "b", "EDL + average (d) vs Late Fusion (b)"),
+    ("e", "b", "EDL + DS (e) vs Late Fusion (b)"),
+    ("d", "c", "EDL + average (d) vs GMU (c)"),
+    ("d", "b_clean_fit", "EDL + average (d) vs clean-fitted Late Fusion (control)"),
+    ("e", "d", "DS (e) vs average (d), standard noise"),
+    ("g", "d_prime", "DS (g) vs average (d'), all modalities noisy"),
+    ("h_discounted", "d", "discounted (h) vs average (d)"),
+    ("f", "e", "DS + gating (f) vs DS (e)"),
+    ("clean_e", "clean_d", "DS vs average, clean test"),
+    *((f"a_edl_{m}", f"a_{m}", f"objective: EDL vs sigmoid head, {m}") for m in MODALITIES),
+)
+
+
+def compare(ctx: Context, name: str, correct_a: np.ndarray, correct_b: np.ndarray, clusters: np.ndarray) -> dict:
+    """Paired accuracy comparison A - B on per-row correctness (averaged over training runs and
+    noise seeds): scene-clustered sign-flip permutation p, MDE at 80 % power, clustered bootstrap CI,
+    and a verdict that says 'no difference' only when the MDE is below the effect of interest."""
+    from evids.metrics import accuracy  # noqa: F401  (kept for API symmetry)
+
+    bc = ctx.cfg.bootstrap
+    n_cl = len(set(clusters.tolist())) if len(clusters) else 0
+    row = {"comparison": name, "n_segments": len(clusters), "n_clusters": n_cl, "cluster_unit": "scene"}
+    if len(clusters) == 0 or n_cl < 2:
+        return {**row, "delta_accuracy": None, "ci_low": None, "ci_high": None, "p_value": None,
+                "p_permutation": None, "mde": None, "verdict": "not enough clusters"}
+    rng = np.random.default_rng(np.random.SeedSequence([bc.seed, zlib.crc32(name.encode())]))
+    perm = paired_permutation_test(correct_a, correct_b, clusters, rng, bc.n_permutations)
+    y0 = np.zeros(len(clusters), np.int64)
+    boot = paired_bootstrap(lambda a, yy: float(np.mean(a)), y0, correct_a, correct_b, clusters, rng,
+                            n_resamples=bc.n_resamples, confidence=bc.confidence)
+    if perm.p_value <= 0.05:
+        verdict = "A better" if perm.estimate > 0 else "B better"
+    elif np.isfinite(perm.mde) and perm.mde < bc.effect_of_interest:
+        verdict = f"no difference (MDE {perm.mde * 100:.1f} pp < {bc.effect_of_interest * 100:.1f} pp)"
+    else:
+        verdict = f"cannot be decided at this size (MDE {perm.mde * 100:.1f} pp >= {bc.effect_of_interest * 100:.1f} pp)"
+    return {**row, "delta_accuracy": perm.estimate, "ci_low": boot.ci_low, "ci_high": boot.ci_high,
+            "p_value": perm.p_value, "p_bootstrap": boot.p_value, "p_permutation": perm.p_value,
+            "permutation_exact": perm.exact, "n_permutations": perm.n_permutations, "mde": perm.mde,
+            "sd_cluster_difference": perm.sd, "confidence": boot.confidence, "verdict": verdict}
+
+
+def _video_by_size(ctx: Context, correct: np.ndarray) -> dict:
+    """Video (EDL) accuracy by apparent drone size, on clean test drone segments (mean over runs)."""
+    px = np.concatenate([ctx.prep.clips[i].drone_px if ctx.prep.clips[i].drone_px is not None
+                         else np.full(ctx.prep.clips[i].n_segments, np.nan) for i in ctx.test])
+    y = ctx.labels()
+    edges = [0.0, 1.0, 3.0, 6.0, 12.0, 24.0, 48.0]
+    rows = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = (y == 0) & (px >= lo) & (px < hi)
+        rows.append({"px_low": lo, "px_high": hi, "n": int(sel.sum()),
+                     "accuracy": float(correct[sel].mean()) if sel.any() else None})
+    bg = y == 1
+    return {"bins": rows, "background_accuracy": float(correct[bg].mean()) if bg.any() else None,
+            "condition": "a_edl_video", "variant": "clean"}
+
+
+def observability_summary(ctx: Context) -> dict:
+    """Per split: histogram of the drone's apparent size per segment and the fraction of drone
+    segments each sensor observes (simulator truth)."""
+    out = {}
+    edges = [0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48]
+    for split, idx in ctx.prep.split.items():
+        drone = [ctx.prep.clips[i] for i in idx if ctx.prep.clips[i].label == 0]
+        sizes = [c.drone_px for c in drone if c.drone_px is not None]
+        px = np.concatenate(sizes) if sizes else np.zeros(0)
+        obs = {m: float(np.mean(np.concatenate([c.observability[m] for c in drone if m in c.observability])))
+               if drone and all(m in c.observability for c in drone) else None for m in ("video", "audio", "rf")}
+        out[split] = {"n_clips": len(idx), "n_drone_clips": len(drone), "px_edges": edges,
+                      "px_hist": np.histogram(px, edges)[0].tolist() if px.size else [],
+                      "px_median": float(np.median(px)) if px.size else None, "observed_fraction": obs}
+    return out
+
+
 def stage_evaluate(ctx: Context) -> dict:
-    """Every condition under every noise seed; mean/std; clip-clustered paired bootstrap."""
+    """Every condition under every (training run, noise seed); mean/std over both; scene-clustered
+    permutation tests, MDEs and bootstrap CIs on per-row correctness averaged over runs and seeds."""
     t0 = time.perf_counter()
     cfg = ctx.cfg
-    y, cid = ctx.labels(), ctx.clip_ids()
+    y, cid, scn = ctx.labels(), ctx.clip_ids(), ctx.scene_ids()
     gate, gate_info = _gate_params(ctx)
     conds = [c for c in CONDITIONS if c.variant != "iq" or ctx.has_iq()]
     skipped = [{"condition": c.key, "reason": "dataset has no rf_iq/ captures (I/Q-level noise impossible)"}
                for c in CONDITIONS if c not in conds]
-    jobs = [(v, s) for v in VARIANTS for s in cfg.protocol.noise_seeds if any(c.variant == v for c in conds)]
+    jobs = [(v, s, r) for v in VARIANTS for s in cfg.protocol.noise_seeds for r in ctx.runs
+            if any(c.variant == v for c in conds)]
     if ctx.progress:
         from rich.progress import track
 
         jobs = track(jobs, description="evaluating conditions", total=len(jobs))
     per: dict[str, list[dict]] = {c.key: [] for c in conds}
+    correct: dict[str, list[np.ndarray]] = {c.key: [] for c in conds}
     preds0: dict[str, Prediction] = {}
-    for variant, seed in jobs:
-        out = ctx.outputs(variant, seed)
+    for variant, seed, run in jobs:
+        out = ctx.outputs(variant, seed, run=run)
         for c in conds:
             if c.variant != variant:
                 continue
-            pred = predict_condition(c, ctx.models, out, cid, cfg.fusion.c_max, cfg.fusion.construction, gate)
-            per[c.key].append(metrics_of(pred, y, cfg.ece_bins))
-            if seed == cfg.protocol.noise_seeds[0]:
+            pred = predict_condition(c, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction, gate)
+            m = metrics_of(pred, y, cfg.ece_bins)
+            m.update({"run": run, "noise_seed": seed})
+            per[c.key].append(m)
+            correct[c.key].append(pred.probs.argmax(1) == y)
+            if seed == cfg.protocol.noise_seeds[0] and run == 0:
                 preds0[c.key] = pred
+        if run == ctx.runs[-1]:
+            ctx.drop_inputs()
     rows = []
     for c in conds:
-        agg = _aggregate(per[c.key])
-        rows.append({"key": c.key, "label": c.label, "variant": c.variant, "n_segments": int(len(y)),
-                     "n_clips": int(len(set(cid))), "n_seeds": len(per[c.key]), **agg})
-    boots = bootstrap_comparisons(ctx, preds0, y, cid)
+        agg = _aggregate([{k: v for k, v in r.items() if k not in ("run", "noise_seed")} for r in per[c.key]])
+        accs = np.array([r["accuracy"] for r in per[c.key]]).reshape(-1)
+        by_run = [float(np.mean([r["accuracy"] for r in per[c.key] if r["run"] == k])) for k in ctx.runs]
+        rows.append({"key": c.key, "label": c.label, "variant": c.variant, "n_segments": len(y),
+                     "n_clips": len(set(cid)), "n_scenes": len(set(scn)), "n_runs": len(ctx.runs),
+                     "n_seeds": len(cfg.protocol.noise_seeds), "n_evaluations": int(accs.size),
+                     "accuracy_std_training": float(np.std(by_run)), **agg})
+    mean_correct = {k: np.mean(v, axis=0) for k, v in correct.items()}
+    comps = [compare(ctx, name, mean_correct[a], mean_correct[b], scn) for a, b, name in COMPARISONS
+             if a in mean_correct and b in mean_correct]
     np.savez_compressed(ctx.run_dir / ".predictions.npz.tmp.npz", labels=y, clip_ids=cid.astype(str),
+                        scene_ids=scn.astype(str),
                         **{f"{k}__probs": p.probs for k, p in preds0.items()},
                         **{f"{k}__vacuity": p.vacuity for k, p in preds0.items() if p.vacuity is not None},
                         **{f"{k}__conflict": p.conflict for k, p in preds0.items() if p.conflict is not None})
     os.replace(ctx.run_dir / ".predictions.npz.tmp.npz", ctx.run_dir / "predictions.npz")
-    result = {"conditions": rows, "skipped": skipped, "bootstrap": boots, "gate_condition_f": gate_info,
-              "noise_protocol": cfg.protocol.model_dump(mode="json"),
+    temps = [{"run": k, **{f"T_{n}": v for n, v in m.temperatures.items()},
+              **{f"bound_{n}": f for n, f in m.temperature_flags.items()}} for k, m in enumerate(ctx.models)]
+    rf_drop = None
+    rows_by = {r["key"]: r for r in rows}
+    if "a_edl_rf" in rows_by:
+        clean_rf = _clean_unimodal(ctx, "rf", y)
+        noisy = _noisy_unimodal(ctx, "rf", y)
+        rf_drop = {"clean": clean_rf, "rf_spec_noise": noisy, "drop": None if noisy is None else clean_rf - noisy,
+                   "noise": [e.model_dump(mode="json") for e in cfg.protocol.rf_spec]}
+    result = {"conditions": rows, "skipped": skipped, "bootstrap": comps, "comparisons": comps,
+              "gate_condition_f": gate_info, "noise_protocol": cfg.protocol.model_dump(mode="json"),
+              "temperatures": temps, "rf_noise_effect": rf_drop,
+              "video_by_size": _video_by_size(ctx, mean_correct["clean_video_edl"]) if "clean_video_edl" in mean_correct
+              else _video_by_size(ctx, _clean_correct(ctx, "video", y)),
+              "observability": observability_summary(ctx),
               "majority_class_accuracy": float(max(np.mean(y == 0), np.mean(y == 1)))}
     write_json(ctx.run_dir / "evaluate.json", result)
     write_csv(ctx.run_dir / "conditions.csv", rows)
-    write_csv(ctx.run_dir / "bootstrap.csv", boots)
+    write_csv(ctx.run_dir / "bootstrap.csv", comps)
     mark_stage(ctx.run_dir, "evaluate", time.perf_counter() - t0)
     return result
 
 
-def _boot(ctx: Context, name: str, a: np.ndarray, b: np.ndarray, y: np.ndarray, cid: np.ndarray) -> dict:
-    from evids.metrics import accuracy
-
-    bc = ctx.cfg.bootstrap
-    if len(y) == 0 or len(set(cid)) < 2:
-        return {"comparison": name, "n_segments": int(len(y)), "n_clips": int(len(set(cid))), "delta_accuracy": None,
-                "ci_low": None, "ci_high": None, "p_value": None}
-    r = paired_bootstrap(lambda p, yy: accuracy(p, yy), y, a, b, cid, np.random.default_rng(
-        np.random.SeedSequence([bc.seed, zlib.crc32(name.encode())])), n_resamples=bc.n_resamples, confidence=bc.confidence)
-    return {"comparison": name, "n_segments": int(len(y)), "n_clips": r.n_clusters, "delta_accuracy": r.estimate,
-            "ci_low": r.ci_low, "ci_high": r.ci_high, "p_value": r.p_value, "confidence": r.confidence,
-            "n_resamples": bc.n_resamples}
+def _clean_correct(ctx: Context, modality: str, y: np.ndarray) -> np.ndarray:
+    m = MODALITIES.index(modality)
+    return np.mean([(ctx.outputs("clean", 0, run=r).alpha[m].argmax(1) == y) for r in ctx.runs], axis=0)
 
 
-def bootstrap_comparisons(ctx: Context, preds: dict[str, Prediction], y: np.ndarray, cid: np.ndarray) -> list[dict]:
-    """Key paired comparisons on the first noise seed, clip-clustered (A minus B, accuracy)."""
-    pairs = [("d", "b", "EDL + average (d) vs Late Fusion (b)"), ("e", "b", "EDL + DS (e) vs Late Fusion (b)"),
-             ("d", "c", "EDL + average (d) vs GMU (c)"),
-             ("e", "d", "DS (e) vs average (d), standard noise"),
-             ("g", "d_prime", "DS (g) vs average (d'), all modalities noisy"),
-             ("h_discounted", "d", "discounted (h) vs average (d)"), ("f", "e", "DS + gating (f) vs DS (e)"),
-             ("clean_e", "clean_d", "DS vs average, clean test")]
-    return [_boot(ctx, name, preds[a].probs, preds[b].probs, y, cid) for a, b, name in pairs
-            if a in preds and b in preds]
+def _clean_unimodal(ctx: Context, modality: str, y: np.ndarray) -> float:
+    return float(_clean_correct(ctx, modality, y).mean())
+
+
+def _noisy_unimodal(ctx: Context, modality: str, y: np.ndarray) -> float | None:
+    m = MODALITIES.index(modality)
+    vals = [(ctx.outputs("all_spec", s, run=r).alpha[m].argmax(1) == y).mean()
+            for r in ctx.runs for s in ctx.cfg.protocol.noise_seeds]
+    return float(np.mean(vals)) if vals else None
 
 
 SWEEP_RULES = ("late", "gmu", "average", "ds", "yager", "discounted")
@@ -283,19 +427,21 @@ def stage_sweep(ctx: Context) -> dict:
         if stream == "rf_iq" and not ctx.has_iq():
             continue
         per: dict[str, list[dict]] = {}
-        for seed in seeds:
-            out = ctx.outputs("clean", 0) if sev == 0 else ctx.outputs(
-                "sweep", seed, **{stream: [NoiseEntry(name=name, severity=sev)]})
+        for seed, run in [(s_, r_) for s_ in seeds for r_ in ctx.runs]:
+            out = ctx.outputs("clean", 0, run=run) if sev == 0 else ctx.outputs(
+                "sweep", seed, run=run, **{stream: [NoiseEntry(name=name, severity=sev)]})
             for rule in (*SWEEP_RULES, "unimodal_sigmoid", "unimodal_edl"):
                 cond = Condition(rule, rule, "sweep", {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}.get(rule, rule),
                                  modality if rule.startswith("unimodal") else None)
-                pred = predict_condition(cond, ctx.models, out, cid, cfg.fusion.c_max, cfg.fusion.construction, None)
+                pred = predict_condition(cond, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction,
+                                         None)
                 m = metrics_of(pred, y, cfg.ece_bins)
                 per.setdefault(rule, []).append({k: m[k] for k in ("accuracy", "macro_f1", "ece", "uauc_entropy",
                                                                    "uauc_vacuity")})
+        ctx.drop_inputs()
         for rule, vals in per.items():
             rows.append({"modality": modality, "degradation": name, "severity": sev, "rule": rule,
-                         "n_seeds": len(vals), **_aggregate(vals)})
+                         "n_seeds": len(seeds), "n_runs": len(ctx.runs), **_aggregate(vals)})
     write_csv(ctx.run_dir / "sweep.csv", rows)
     write_json(ctx.run_dir / "sweep.json", {"rows": rows, "seeds": seeds})
     mark_stage(ctx.run_dir, "sweep", time.perf_counter() - t0)
@@ -305,97 +451,183 @@ def stage_sweep(ctx: Context) -> dict:
 CONFLICT_RULES = ("late", "gmu", "average", "ds", "yager", "discounted")
 
 
-def stage_conflict(ctx: Context) -> dict:
-    """Conflict programs on every test clip: agreeing vs conflicting segments per rule, C, fallback,
-    and UAUC of each modality's vacuity against its ground-truth compromised flag."""
-    t0 = time.perf_counter()
+def _majority(alpha: np.ndarray) -> np.ndarray:
+    votes = alpha.argmax(-1)                          # (3, N)
+    return (votes.sum(0) >= 2).astype(np.int64)       # class 1 when >= 2 of 3 vote Background
+
+
+def _rule_preds(ctx: Context, run: int, out: Outputs, cid: np.ndarray) -> dict[str, np.ndarray]:
+    cfg = ctx.cfg
+    preds = {rule: predict_condition(Condition(rule, rule, "conflict", rule), ctx.models[run], out, cid,
+                                     cfg.fusion.c_max, cfg.fusion.construction, None).probs.argmax(1)
+             for rule in CONFLICT_RULES}
+    preds["majority_vote"] = _majority(out.alpha)
+    return preds
+
+
+def _swap_program(ctx: Context, prog) -> dict:
+    """Realised effect of one twin-swap program on the test split, over every training run."""
+    from degradations.schedule import swap_program
+
     cfg, cc = ctx.cfg, ctx.cfg.conflict
-    seed = cfg.protocol.noise_seeds[0]
-    rows_y, rows_cid, rows_conf, rows_prog = [], [], [], []
-    comp: dict[str, list] = {m: [] for m in MODALITIES}
-    preds: dict[str, list] = {r: [] for r in CONFLICT_RULES}
-    u_mod: list[np.ndarray] = []
-    c_ds, fb_ds = [], []
-    jobs = [(p, i) for p in cc.programs for i in ctx.test]
+    desc, kind, mods = swap_program(prog.name)
+    by_id = {c.clip_id: k for k, c in enumerate(ctx.prep.clips)}
+    want = 0 if kind == "blind" else 1
+    items = [(i, by_id[ctx.prep.clips[i].twin]) for i in ctx.test
+             if ctx.prep.clips[i].label == want and ctx.prep.clips[i].twin in by_id]
+    base = {"program": prog.key, "name": prog.name, "strength": prog.strength, "kind": kind,
+            "modalities": list(mods), "description": desc}
+    if not items:
+        return {**base, "n_targeted": 0, "status": "not run: no test clip of this kind has a twin"}
+    parts, targ, y, cid, scn = [], [], [], [], []
+    for i, j in items:
+        clip, donor = ctx.prep.clips[i], ctx.prep.clips[j]
+        w = program_window(clip.n_segments, cc.onset_fraction, cc.duration_fraction)
+        parts.append(swap_clip(clip, donor, mods, prog.strength, w, ctx.prep.rf_range_db))
+        targ.append(targeted_segments(clip, donor, kind, mods, w))
+        y.append(np.full(clip.n_segments, clip.label))
+        cid.append(np.full(clip.n_segments, clip.clip_id, dtype=object))
+        scn.append(np.full(clip.n_segments, clip.scene, dtype=object))
+    T, y, cid, scn = np.concatenate(targ), np.concatenate(y), np.concatenate(cid), np.concatenate(scn)
+    if not T.any():
+        return {**base, "n_clips": len(items), "n_targeted": 0,
+                "status": "not run: no test segment where the drone clip's sensor observes the drone"}
+    x = (np.concatenate([p.mfcc for p in parts]), np.concatenate([p.video for p in parts]),
+         np.concatenate([p.rf for p in parts]))
+    offsets = np.cumsum([0] + [ctx.prep.clips[i].n_segments for i in ctx.test])
+    pos = {i: k for k, i in enumerate(ctx.test)}
+    rows = np.concatenate([np.arange(offsets[pos[i]], offsets[pos[i] + 1]) for i, _ in items])
+    m_idx = [MODALITIES.index(m) for m in mods]
+    flips, conf, C, FB, acc, dis = [], [], [], [], {}, []
+    dis_acc = {"ds": [], "average": []}
+    where = []
+    ctx.cache.setdefault("conflict_correct", {})[prog.key] = []
+    for run in ctx.runs:
+        full = ctx.outputs("clean", 0, run=run)
+        clean = Outputs(full.logit[:, rows], full.alpha[:, rows], full.emb[:, rows])
+        out = clean
+        swapped = encode(ctx.models[run], *x, only=tuple(mods))
+        for m in m_idx:
+            out = out.replace(m, swapped)
+        v_clean = clean.alpha[m_idx].argmax(-1)[:, T]             # (k, n_targeted)
+        v_prog = out.alpha[m_idx].argmax(-1)[:, T]
+        flips.append(float((v_clean != v_prog).mean()))
+        p_prog = out.alpha[m_idx] / out.alpha[m_idx].sum(-1, keepdims=True)
+        conf.append(float(p_prog[..., 1 - want][:, T].mean()))    # probability of the WRONG class
+        ds = fuse("ds", out.alpha, cfg.fusion.c_max, cfg.fusion.construction)
+        C.append(ds.conflict[T])
+        FB.append(ds.fallback[T])
+        preds = _rule_preds(ctx, run, out, cid)
+        for rule, pr in preds.items():
+            acc.setdefault(rule, []).append(float((pr[T] == y[T]).mean()) if T.any() else None)
+        differ = (preds["ds"] != preds["average"]) & T
+        dis.append(float(differ[T].mean()) if T.any() else 0.0)
+        for rule in ("ds", "average"):
+            dis_acc[rule].append(float((preds[rule][differ] == y[differ]).mean()) if differ.any() else None)
+        if run == 0 and differ.any():
+            for k in np.flatnonzero(differ)[:5]:
+                seg = int(k - np.flatnonzero(cid == cid[k])[0])
+                where.append({"clip": str(cid[k]), "segment": seg, "label": int(y[k]),
+                              "ds": int(preds["ds"][k]), "average": int(preds["average"][k]),
+                              "alpha": np.round(out.alpha[:, k], 3).tolist()})
+        ctx.cache.setdefault("conflict_correct", {}).setdefault(prog.key, []).append(
+            {r: (preds[r] == y)[T] for r in ("ds", "average")})
+    Cs = np.concatenate(C)
+    flip = float(np.mean(flips))
+    status = ("inert" if flip < cc.inert_flip_rate else
+              "bites" if flip >= cc.min_flip_rate else "weak (flips fewer than the target share)")
+    runs_c = ctx.cache["conflict_correct"][prog.key]
+    ds_c = np.mean([r["ds"] for r in runs_c], axis=0)
+    av_c = np.mean([r["average"] for r in runs_c], axis=0)
+    comp = compare(ctx, f"DS vs average, {prog.key} targeted segments", ds_c, av_c, scn[T])
+    edges = np.linspace(0.0, 1.0, 21)
+
+    def mean_or_none(v):
+        v = [a for a in v if a is not None]
+        return float(np.mean(v)) if v else None
+
+    return {**base, "n_clips": len(items), "n_targeted": int(T.sum()), "n_segments": len(T),
+            "flip_rate": flip, "flip_rate_std_training": float(np.std(flips)),
+            "wrong_class_probability": float(np.mean(conf)), "status": status,
+            "ds_conflict": {"mean": float(Cs.mean()) if Cs.size else None,
+                            "quantiles": np.quantile(Cs, [0.1, 0.5, 0.9]).tolist() if Cs.size else None,
+                            "hist": np.histogram(Cs, edges)[0].tolist(), "edges": edges.tolist()},
+            "fallback_rate": float(np.concatenate(FB).mean()) if Cs.size else None,
+            "accuracy": {r: mean_or_none(v) for r, v in acc.items()},
+            "ds_average_disagree_rate": float(np.mean(dis)),
+            "ds_average_disagree_accuracy": {r: mean_or_none(v) for r, v in dis_acc.items()},
+            "disagreements": where, "ds_vs_average": comp}
+
+
+def stage_conflict(ctx: Context) -> dict:
+    """Conflict study: twin-swap programs (realised flip rate, wrong-class confidence, DS conflict C,
+    fallback, each rule's accuracy on the targeted segments, where DS and averaging disagree), and
+    any listed legacy programs measured the same way (flip rate of the compromised modality)."""
+    t0 = time.perf_counter()
+    cc = ctx.cfg.conflict
+    progs = list(cc.swaps)
     if ctx.progress:
         from rich.progress import track
 
-        jobs = track(jobs, description="conflict study", total=len(jobs))
-    by_prog: dict[str, list] = {}
-    for program, i in jobs:
-        clip = ctx.prep.clips[i]
-        dur = clip.n_segments * 0.25
-        deg, flags = conflict_clip(clip, i, seed, program, cc.onset_fraction * dur, cc.duration_fraction * dur,
-                                   cc.severity, ctx.prep.rf_range_db)
-        by_prog.setdefault(program, []).append((i, deg, flags))
-    for program, items in by_prog.items():
-        out = encode(ctx.models, np.concatenate([d.mfcc for _, d, _ in items]),
-                     np.concatenate([d.video for _, d, _ in items]), np.concatenate([d.rf for _, d, _ in items]))
-        y = np.concatenate([np.full(ctx.prep.clips[i].n_segments, ctx.prep.clips[i].label) for i, _, _ in items])
-        cid = np.concatenate([np.full(ctx.prep.clips[i].n_segments, ctx.prep.clips[i].clip_id, dtype=object)
-                              for i, _, _ in items])
-        rows_y.append(y)
-        rows_cid.append(cid)
-        rows_conf.append(np.concatenate([f["conflict"] for _, _, f in items]))
-        rows_prog.append(np.full(len(y), program, dtype=object))
-        for m in MODALITIES:
-            comp[m].append(np.concatenate([f["compromised"][m] for _, _, f in items]))
-        for rule in CONFLICT_RULES:
-            preds[rule].append(predict_condition(Condition(rule, rule, "conflict", rule), ctx.models, out, cid,
-                                                 cfg.fusion.c_max, cfg.fusion.construction, None).probs)
-        u_mod.append(2.0 / out.alpha.sum(-1))
-        ds = fuse("ds", out.alpha, cfg.fusion.c_max, cfg.fusion.construction)
-        c_ds.append(ds.conflict)
-        fb_ds.append(ds.fallback)
-    y, cid, conf, prog = (np.concatenate(rows_y), np.concatenate(rows_cid), np.concatenate(rows_conf),
-                          np.concatenate(rows_prog))
-    P = {r: np.concatenate(v) for r, v in preds.items()}
-    U = np.concatenate(u_mod, axis=1)
-    C, FB = np.concatenate(c_ds), np.concatenate(fb_ds)
-    CM = {m: np.concatenate(v) for m, v in comp.items()}
-    rule_rows = []
-    for program in [*by_prog, "all"]:
-        sel_p = np.ones(len(y), bool) if program == "all" else prog == program
-        for subset, mask in (("agreeing", sel_p & ~conf), ("conflicting", sel_p & conf)):
-            for rule in CONFLICT_RULES:
-                n = int(mask.sum())
-                acc = float((P[rule][mask].argmax(1) == y[mask]).mean()) if n else None
-                rule_rows.append({"program": program, "segments": subset, "rule": rule, "n": n, "accuracy": acc})
-            rule_rows.append({"program": program, "segments": subset, "rule": "ds_fallback_rate", "n": int(mask.sum()),
-                              "accuracy": float(FB[mask].mean()) if mask.any() else None})
-    ua = []
-    for m_i, m in enumerate(MODALITIES):
-        flag = CM[m]
-        ua.append({"modality": m, "n_compromised": int(flag.sum()), "n": int(len(flag)),
-                   "uauc_vacuity_vs_compromised": uauc(U[m_i], flag) if 0 < flag.sum() < len(flag) else None,
-                   "mean_u_compromised": float(U[m_i][flag].mean()) if flag.any() else None,
-                   "mean_u_clean": float(U[m_i][~flag].mean()) if (~flag).any() else None})
-    boots = [_boot(ctx, "DS vs average, conflicting segments", P["ds"][conf], P["average"][conf], y[conf], cid[conf]),
-             _boot(ctx, "DS vs average, agreeing segments", P["ds"][~conf], P["average"][~conf], y[~conf], cid[~conf]),
-             _boot(ctx, "discounted vs average, conflicting segments", P["discounted"][conf], P["average"][conf],
-                   y[conf], cid[conf]),
-             _boot(ctx, "Yager vs average, conflicting segments", P["yager"][conf], P["average"][conf], y[conf],
-                   cid[conf])]
-    hist_edges = np.linspace(0.0, 1.0, 21)
-    result = {"seed": seed, "programs": list(by_prog), "rules": rule_rows, "uauc_compromised": ua, "bootstrap": boots,
-              "conflict_C": {"edges": hist_edges, "agreeing": np.histogram(C[~conf], hist_edges)[0],
-                             "conflicting": np.histogram(C[conf], hist_edges)[0],
-                             "mean_agreeing": float(C[~conf].mean()) if (~conf).any() else None,
-                             "mean_conflicting": float(C[conf].mean()) if conf.any() else None,
-                             "c_max": cfg.fusion.c_max},
-              "fallback_rate": {"all": float(FB.mean()), "agreeing": float(FB[~conf].mean()) if (~conf).any() else None,
-                                "conflicting": float(FB[conf].mean()) if conf.any() else None},
-              "n_segments": int(len(y)), "n_conflicting": int(conf.sum())}
+        progs = track(progs, description="conflict study", total=len(progs))
+    rows = [_swap_program(ctx, p) for p in progs]
+    legacy = [_legacy_program(ctx, name) for name in cc.programs]
+    decisive = [r["program"] for r in rows if r.get("ds_average_disagree_rate", 0.0) > 0.0]
+    result = {"programs": rows, "legacy_programs": legacy,
+              "programs_where_ds_and_average_differ": decisive,
+              "all_bite": all(r.get("status") == "bites" for r in rows) if rows else None,
+              "onset_fraction": cc.onset_fraction, "duration_fraction": cc.duration_fraction,
+              "c_max": ctx.cfg.fusion.c_max, "runs": len(ctx.runs)}
     write_json(ctx.run_dir / "conflict.json", result)
-    write_csv(ctx.run_dir / "conflict.csv", rule_rows)
+    flat = [{k: v for k, v in r.items() if not isinstance(v, (dict, list))} for r in rows + legacy]
+    write_csv(ctx.run_dir / "conflict.csv", flat)
     mark_stage(ctx.run_dir, "conflict", time.perf_counter() - t0)
     return result
+
+
+def _legacy_program(ctx: Context, program: str) -> dict:
+    """An older degradation-based program on every test clip (run 0): flip rate of the compromised
+    modality's vote on the segments the program marks compromised."""
+    cfg, cc = ctx.cfg, ctx.cfg.conflict
+    seed = cfg.protocol.noise_seeds[0]
+    degs, flags = [], []
+    for i in ctx.test:
+        clip = ctx.prep.clips[i]
+        dur = clip.n_segments * 0.25
+        d, f = conflict_clip(clip, i, seed, program, cc.onset_fraction * dur, cc.duration_fraction * dur,
+                             cc.severity, ctx.prep.rf_range_db)
+        degs.append(d)
+        flags.append(f)
+    out = encode(ctx.models[0], np.concatenate([d.mfcc for d in degs]), np.concatenate([d.video for d in degs]),
+                 np.concatenate([d.rf for d in degs]))
+    clean = ctx.outputs("clean", 0)
+    res = {"program": program, "kind": "legacy"}
+    for m, modality in enumerate(MODALITIES):
+        comp = np.concatenate([f["compromised"][modality] for f in flags])
+        if comp.any():
+            flip = float((out.alpha[m].argmax(-1)[comp] != clean.alpha[m].argmax(-1)[comp]).mean())
+            res.update({"modality": modality, "n_targeted": int(comp.sum()), "flip_rate": flip,
+                        "status": "inert" if flip < cc.inert_flip_rate else
+                        "bites" if flip >= cc.min_flip_rate else "weak (flips fewer than the target share)"})
+    return res
+
+
+def stage_audit(ctx: Context) -> dict:
+    """The shortcut audit on this run's own split (train -> test), written to audit.json."""
+    from evids.experiments.audit import audit_clips
+
+    t0 = time.perf_counter()
+    res = audit_clips(ctx.prep.clips, ctx.prep.split, seed=ctx.cfg.bootstrap.seed,
+                      min_segments=ctx.cfg.audit.min_segments)
+    write_json(ctx.run_dir / "audit.json", res)
+    mark_stage(ctx.run_dir, "audit", time.perf_counter() - t0)
+    return res
 
 
 def _time_stream(ctx: Context, x: dict[str, np.ndarray], cid: np.ndarray, params: GateParams | None,
                  repeats: int) -> dict:
     """Stream the test segments one at a time (batch 1, as a live system) and time the encoders."""
-    models = [ctx.models.unimodal[(m, "evidential")] for m in MODALITIES]
+    models = [ctx.models[0].unimodal[(m, "evidential")] for m in MODALITIES]
     tensors = [torch.from_numpy(np.ascontiguousarray(x[m])) for m in MODALITIES]
     best = None
     for _ in range(repeats):

@@ -138,3 +138,33 @@ def fit_temperature(logits: Any, labels: Any, t_min: float = 1e-2, t_max: float 
         options={"xatol": 1e-6},
     )
     return float(np.exp(res.x))
+
+
+def fit_temperature_flagged(logits: Any, labels: Any, t_min: float = 0.05, t_max: float = 20.0,
+                            rel_tol: float = 0.01) -> tuple[float, str | None]:
+    """:func:`fit_temperature` plus which bound it hit (``"lower"``/``"upper"``) or None.
+
+    A temperature at a bound is not a calibrated optimum (the NLL still falls beyond it), so
+    reports must flag it rather than present the scaled model as calibrated.
+    """
+    t = fit_temperature(logits, labels, t_min=t_min, t_max=t_max)
+    if t <= t_min * (1 + rel_tol):
+        return t, "lower"
+    if t >= t_max / (1 + rel_tol):
+        return t, "upper"
+    return t, None
+
+
+def entropy_from_log_probs(log_probs: Any) -> np.ndarray:
+    """Shannon entropy (nats) of (N, K) distributions given as log-probabilities.
+
+    Computed as ``-sum p log p`` with ``p = exp(log p)`` taken from the log domain, so two nearly
+    saturated predictions (p = 1 - 1e-20 vs 1 - 1e-30, both exactly 1.0 in float64) keep distinct
+    entropies and rank metrics such as UAUC do not tie them.
+    """
+    lp = as_numpy(log_probs, "log_probs").astype(np.float64)
+    if lp.ndim != 2:
+        raise ValueError(f"log_probs must have shape (N, K), got {lp.shape}")
+    with np.errstate(invalid="ignore"):
+        terms = np.where(np.isneginf(lp), 0.0, np.exp(lp) * lp)
+    return -terms.sum(axis=1)

@@ -3,8 +3,8 @@
 Inputs (as produced by :mod:`evids.experiments.data`):
 
 - audio: MFCC ``(B, 1, 40, 40)`` float32 (LeNet-like 2-D CNN);
-- video: ``(B, 7, 112, 112, 3)`` uint8 RGB; the first op average-pools 4x4 to 28x28, then a
-  (2+1)-D CNN (spatial 3x3 conv, temporal 3-tap conv) so it trains in seconds on a CPU;
+- video: ``(B, 7, 112, 112, 3)`` uint8 RGB; a (2+1)-D CNN whose first op is a 7x7 convolution at
+  full resolution (stride 4), so a 3 px target is seen before any downsampling (max-pools after);
 - rf: spectrogram ``(B, 112, 112)`` float32 in [0, 1] (pooled 2x, small 2-D CNN).
 
 Heads: ``"sigmoid"`` gives one logit (P(class 1) = sigmoid; class 0 = Drone as in TRIDENT),
@@ -45,22 +45,36 @@ class AudioLeNet(nn.Module):
 
 
 class VideoNet(nn.Module):
-    """Compact (2+1)-D CNN on a 7-frame RGB segment; downsamples 4x before any convolution."""
+    """Compact (2+1)-D CNN on a 7-frame RGB segment that keeps a 3-30 px target.
 
-    def __init__(self, width: int = 8, out_features: int = 32, pool: int = 4) -> None:
+    The first operation is a (pool + 3) x (pool + 3) convolution at the full 112 px resolution with
+    stride ``pool`` (7x7 stride 4 by default: neighbouring windows overlap by 3 px, so every 3 px
+    patch lies wholly inside one window), so a 3 px drone reaches a learned filter before anything
+    is downsampled; later stages max-pool
+    (a small dark or bright spot survives a max, not an average) and the embedding is the max over
+    space. ``frames`` evenly spaced frames of the 7 are used (temporal cost knob). Each segment's
+    mean colour is removed first, so the sky's colour is not a feature.
+    """
+
+    def __init__(self, width: int = 8, out_features: int = 32, pool: int = 4, frames: int = 7) -> None:
         super().__init__()
         self.out_features = out_features
         self.pool = pool
-        self.spatial1 = nn.Conv3d(3, width, (1, 3, 3), padding=(0, 1, 1))
+        self.frames = frames
+        k = pool + 3 if pool > 1 else 3
+        self.spatial1 = nn.Conv3d(3, width, (1, k, k), stride=(1, pool, pool), padding=(0, k // 2, k // 2))
         self.temporal1 = nn.Conv3d(width, width, (3, 1, 1), padding=(1, 0, 0))
         self.spatial2 = nn.Conv3d(width, 2 * width, (1, 3, 3), padding=(0, 1, 1))
         self.temporal2 = nn.Conv3d(2 * width, 2 * width, (3, 1, 1), padding=(1, 0, 0))
         self.fc = nn.Linear(2 * width * 2, out_features)
 
     def forward(self, x: Tensor) -> Tensor:
-        # (B, T, H, W, 3) uint8 -> (B, 3, T, H, W) float in [0, 1], pooled early
+        # (B, T, H, W, 3) uint8 -> (B, 3, T, H, W) float in [0, 1] at full resolution
+        t = x.shape[1]
+        if self.frames < t:
+            idx = torch.linspace(0, t - 1, self.frames).round().long()
+            x = x[:, idx]
         x = x.permute(0, 4, 1, 2, 3).float() / 255.0
-        x = nn.functional.avg_pool3d(x, (1, self.pool, self.pool))
         x = x - x.mean(dim=(2, 3, 4), keepdim=True)          # remove the sky's mean colour
         x = torch.relu(self.temporal1(torch.relu(self.spatial1(x))))
         x = nn.functional.max_pool3d(x, (1, 2, 2))
@@ -90,12 +104,13 @@ class RFNet(nn.Module):
         return self.net(x.unsqueeze(1))
 
 
-def build_backbone(modality: Modality, width: int = 8, out_features: int = 32, video_pool: int = 4) -> nn.Module:
+def build_backbone(modality: Modality, width: int = 8, out_features: int = 32, video_pool: int = 4,
+                   video_frames: int = 7) -> nn.Module:
     """The backbone of one modality."""
     if modality == "audio":
         return AudioLeNet(width, out_features)
     if modality == "video":
-        return VideoNet(width, out_features, video_pool)
+        return VideoNet(width, out_features, video_pool, video_frames)
     if modality == "rf":
         return RFNet(width, out_features)
     raise ValueError(f"modality must be one of {MODALITIES}, got {modality!r}")
@@ -111,7 +126,7 @@ class UnimodalModel(nn.Module):
         self.modality = modality
         self.head_kind = head
         self.backbone = backbone
-        d = int(getattr(backbone, "out_features"))
+        d = int(backbone.out_features)
         self.head = BaselineHead(d, 1, "sigmoid") if head == "sigmoid" else EvidentialHead(d, 2)
 
     def forward(self, x: Tensor) -> tuple[Tensor, Tensor]:
@@ -142,7 +157,7 @@ def seeded_init(seed: int) -> Iterator[None]:
 
 
 def build_model(modality: Modality, head: HeadKind, seed: int, width: int = 8, out_features: int = 32,
-                video_pool: int = 4) -> UnimodalModel:
+                video_pool: int = 4, video_frames: int = 7) -> UnimodalModel:
     """A freshly initialised model; the same seed gives the same weights."""
     with seeded_init(seed):
-        return UnimodalModel(modality, head, build_backbone(modality, width, out_features, video_pool))
+        return UnimodalModel(modality, head, build_backbone(modality, width, out_features, video_pool, video_frames))

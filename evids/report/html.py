@@ -85,87 +85,225 @@ def _cond(ev: dict, key: str) -> dict | None:
 
 
 def _verdict(x: dict | None, a: str, b: str) -> str:
-    """'A beats B' only when the clip-clustered CI excludes 0; otherwise say there is no clear difference."""
+    """The comparison's verdict from the scene-clustered permutation test and its MDE."""
     if not x or x.get("delta_accuracy") is None:
-        return f"{a} vs {b}: no bootstrap available"
-    if x["ci_low"] > 0:
+        return f"{a} vs {b}: no test available"
+    v = x.get("verdict", "")
+    if v == "A better":
         return f"{a} beats {b}"
-    if x["ci_high"] < 0:
+    if v == "B better":
         return f"{b} beats {a}"
-    return f"{a} does not beat {b} (no significant difference)"
+    if v.startswith("no difference"):
+        return f"no difference between {a} and {b} {html.escape(v[len('no difference '):])}"
+    return f"{a} vs {b}: {html.escape(v)}"
 
 
-def headline(ev: dict, conflict: dict | None, gate: dict | None) -> list[str]:
+def _stat(x: dict | None) -> str:
+    if not x or x.get("delta_accuracy") is None:
+        return "(no test available)"
+    return (f"&Delta; = {100 * x['delta_accuracy']:+.2f} pp, 95% CI [{100 * x['ci_low']:+.2f}, {100 * x['ci_high']:+.2f}] pp, "
+            f"permutation p = {x['p_permutation']:.3f}, MDE(80%) = {100 * x['mde']:.1f} pp, {x['n_clusters']} scenes")
+
+
+def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | None = None) -> list[str]:
     """Plain-language answers, with the numbers, whatever they are."""
     out = []
     b, d, e = _cond(ev, "b"), _cond(ev, "d"), _cond(ev, "e")
-    boots = {x["comparison"]: x for x in ev.get("bootstrap", [])}
-
-    def bt(name: str) -> str:
-        x = boots.get(name) or {}
-        if x.get("delta_accuracy") is None:
-            return "(bootstrap not available)"
-        return (f"clip-clustered paired bootstrap (first noise seed): &Delta; = {100 * x['delta_accuracy']:+.2f} pp, "
-                f"95% CI [{100 * x['ci_low']:+.2f}, {100 * x['ci_high']:+.2f}] pp, p = {x['p_value']:.3f}, "
-                f"{x['n_clips']} clips")
-
+    comps = {x["comparison"]: x for x in ev.get("comparisons", ev.get("bootstrap", []))}
+    if audit:
+        bad = [r for r in audit["baselines"] if r.get("beats_chance") and r.get("decisive", True)]
+        scored = [r for r in audit["baselines"] if r.get("score") is not None and r.get("decisive", True)]
+        worst = max(scored, key=lambda r: abs(r["score"] - 0.5)) if scored else None
+        out.append("<b>Shortcut audit:</b> " + (
+            f"SHORTCUT: {', '.join(r['feature'] + '/' + r['model'] for r in bad)} beat chance beyond the CI, so "
+            "every answer below may be learned from the scene, not the drone." if bad else
+            f"all {len(scored)} target-blind baselines are at chance (largest deviation: {worst['feature']}/"
+            f"{worst['model']} {100 * worst['score']:.1f}% balanced accuracy, CI [{100 * worst['ci_low']:.1f}, "
+            f"{100 * worst['ci_high']:.1f}]%)." if worst else "no baseline could be scored."))
     if b and d:
-        v = _verdict(boots.get("EDL + average (d) vs Late Fusion (b)"), "EDL + average", "Late Fusion")
-        out.append(f"<b>EDL + average vs sigmoid Late Fusion (the paper's headline comparison):</b> EDL + average {100 * d['accuracy']:.2f}% vs Late Fusion (sigmoid) "
-                   f"{100 * b['accuracy']:.2f}% accuracy under the standard noise protocol: {v}; "
-                   f"{bt('EDL + average (d) vs Late Fusion (b)')}. Entropy-UAUC "
-                   f"{_fmt(d['uauc_entropy'])} (EDL + average) vs {_fmt(b['uauc_entropy'])} (Late Fusion).")
-        pairs = [(m, _cond(ev, f"a_{m}"), _cond(ev, f"a_edl_{m}")) for m in MODALITIES]
-        uni = ", ".join(f"{m} {100 * sg['accuracy']:.1f}% vs {100 * ed['accuracy']:.1f}%" for m, sg, ed in pairs if sg and ed)
-        c = _cond(ev, "c")
-        if uni:
-            out.append("<b>Objective alone</b> (same backbone, sigmoid vs evidential head, standard noise): " + uni
-                       + (f". GMU (sigmoid) reaches {100 * c['accuracy']:.2f}%; "
-                          f"{bt('EDL + average (d) vs GMU (c)')}" if c else "")
-                       + ". The (d) vs (b) comparison changes the fusion rule as well as the head; these rows "
-                         "isolate the head.")
+        name = "EDL + average (d) vs Late Fusion (b)"
+        out.append(f"<b>EDL + average vs sigmoid Late Fusion (fitted on noisy validation outputs):</b> "
+                   f"{100 * d['accuracy']:.2f}% vs {100 * b['accuracy']:.2f}% under the standard noise protocol: "
+                   f"{_verdict(comps.get(name), 'EDL + average', 'Late Fusion')}; {_stat(comps.get(name))}.")
+        bc = _cond(ev, "b_clean_fit")
+        if bc:
+            n2 = "EDL + average (d) vs clean-fitted Late Fusion (control)"
+            out.append(f"<b>Control, Late Fusion fitted on clean train outputs:</b> {100 * bc['accuracy']:.2f}%; "
+                       f"{_verdict(comps.get(n2), 'EDL + average', 'clean-fitted Late Fusion')}; {_stat(comps.get(n2))}.")
+    pairs = [(m, _cond(ev, f"a_{m}"), _cond(ev, f"a_edl_{m}")) for m in MODALITIES]
+    obj = [f"{m}: {100 * ed['accuracy']:.1f}% EDL vs {100 * sg['accuracy']:.1f}% sigmoid, "
+           f"{_verdict(comps.get(f'objective: EDL vs sigmoid head, {m}'), 'EDL', 'sigmoid')} "
+           f"({_stat(comps.get(f'objective: EDL vs sigmoid head, {m}'))})" for m, sg, ed in pairs if sg and ed]
+    if obj:
+        out.append("<b>Does the evidential objective help?</b> (same backbone, standard noise) " + "; ".join(obj) + ".")
     if d and e:
-        v = _verdict(boots.get("DS (e) vs average (d), standard noise"), "DS", "averaging")
+        name = "DS (e) vs average (d), standard noise"
         out.append(f"<b>DS vs averaging, no controlled conflict:</b> DS {100 * e['accuracy']:.2f}% vs average "
-                   f"{100 * d['accuracy']:.2f}%: {v}; {bt('DS (e) vs average (d), standard noise')}.")
+                   f"{100 * d['accuracy']:.2f}%: {_verdict(comps.get(name), 'DS', 'averaging')}; {_stat(comps.get(name))}.")
     g, dp = _cond(ev, "g"), _cond(ev, "d_prime")
     if g and dp:
         name = "DS (g) vs average (d'), all modalities noisy"
-        v = _verdict(boots.get(name), "DS", "averaging")
         out.append(f"<b>All modalities noisy:</b> DS {100 * g['accuracy']:.2f}% vs average {100 * dp['accuracy']:.2f}%: "
-                   f"{v}; {bt(name)}.")
-    if conflict:
-        r = {(x["program"], x["segments"], x["rule"]): x for x in conflict["rules"]}
-        ds, av = r.get(("all", "conflicting", "ds")), r.get(("all", "conflicting", "average"))
-        dsc = r.get(("all", "conflicting", "discounted"))
-        cb = {x["comparison"]: x for x in conflict["bootstrap"]}.get("DS vs average, conflicting segments", {})
-        if ds and av and ds["accuracy"] is not None:
-            s = (f"<b>DS vs averaging under controlled conflict</b> ({conflict['n_conflicting']} conflicting segments): "
-                 f"DS {100 * ds['accuracy']:.2f}% vs average {100 * av['accuracy']:.2f}%"
-                 + (f", discounted {100 * dsc['accuracy']:.2f}%" if dsc and dsc["accuracy"] is not None else "")
-                 + "".join(f", {name} {100 * x['accuracy']:.2f}%" for name, key in (("Late Fusion", "late"), ("GMU", "gmu"))
-                           if (x := r.get(("all", "conflicting", key))) and x["accuracy"] is not None)
-                 + f": {_verdict(cb, 'DS', 'averaging')}")
-            if cb.get("delta_accuracy") is not None:
-                s += (f"; bootstrap &Delta; = {100 * cb['delta_accuracy']:+.2f} pp, CI [{100 * cb['ci_low']:+.2f}, "
-                      f"{100 * cb['ci_high']:+.2f}], p = {cb['p_value']:.3f}")
-            s += (f". Mean DS conflict C: {_fmt(conflict['conflict_C']['mean_conflicting'])} on conflicting vs "
-                  f"{_fmt(conflict['conflict_C']['mean_agreeing'])} on agreeing segments; the fallback "
-                  f"(C &gt; {conflict['conflict_C']['c_max']}) fired on {_fmt(conflict['fallback_rate']['conflicting'], pct=True)}% "
-                  f"of conflicting segments.")
-            out.append(s)
+                   f"{_verdict(comps.get(name), 'DS', 'averaging')}; {_stat(comps.get(name))}.")
+    rf = ev.get("rf_noise_effect")
+    if rf and rf.get("drop") is not None:
+        out.append(f"<b>RF noise protocol:</b> RF (EDL) accuracy {100 * rf['clean']:.1f}% clean vs "
+                   f"{100 * rf['rf_spec_noise']:.1f}% under the RF spectrogram noise (drop {100 * rf['drop']:.1f} pp).")
+    if conflict and conflict.get("programs"):
+        progs = [p for p in conflict["programs"] if p.get("n_targeted")]
+        bites = [p for p in progs if p["status"] == "bites"]
+        differ = [p for p in progs if p.get("ds_average_disagree_rate", 0) > 0]
+        weak = ", ".join(f"{p['program']} {100 * p['flip_rate']:.0f}%" for p in progs if p["status"] != "bites")
+        s = (f"<b>Conflict that bites:</b> {len(bites)} of {len(progs)} programs flip the compromised modality's vote "
+             f"on &ge; half of their targeted segments" + (f" (not: {weak})" if weak else "") + ". ")
+        if differ:
+            top = max(differ, key=lambda p: p["ds_average_disagree_rate"])
+            dc = top["ds_vs_average"]
+            s += (f"DS and averaging decide differently under {len(differ)} programs; most under {top['program']} "
+                  f"({100 * top['ds_average_disagree_rate']:.1f}% of its targeted segments; there DS is right on "
+                  f"{_fmt(top['ds_average_disagree_accuracy'].get('ds'), pct=True)}% and averaging on "
+                  f"{_fmt(top['ds_average_disagree_accuracy'].get('average'), pct=True)}%). On {top['program']}'s targeted "
+                  f"segments: DS {_fmt(top['accuracy'].get('ds'), pct=True)}% vs average "
+                  f"{_fmt(top['accuracy'].get('average'), pct=True)}%: {_verdict(dc, 'DS', 'averaging')}; {_stat(dc)}.")
+        else:
+            s += "No program made DS and averaging decide differently."
+        out.append(s)
     if gate:
         t = gate["timing"]
         f = _cond(ev, "f")
+        name = "DS + gating (f) vs DS (e)"
         out.append(f"<b>Gating:</b> at the validation-chosen point (&tau;<sub>high</sub>={t['params']['tau_high']}, "
                    f"&tau;<sub>low</sub>={t['params']['tau_low']}, N={t['params']['n']}) the encoders skipped "
                    f"{', '.join(f'{m} {100 * s:.1f}%' for m, s in zip(MODALITIES, t['skip_rate_per_modality']))}; "
                    f"realised CPU time saved {100 * t['realised_saving_fraction']:.1f}% vs projected "
-                   f"{100 * t['projected_saving_fraction']:.1f}% (batch-1 streaming, gated encoders really skipped; "
-                   f"the realised figure also drops the skipped calls' Python overhead and single-modality fusion)"
-                   + (f"; accuracy {100 * f['accuracy']:.2f}% gated vs {100 * e['accuracy']:.2f}% ungated ("
-                      f"{bt('DS + gating (f) vs DS (e)')})." if f and e else "."))
+                   f"{100 * t['projected_saving_fraction']:.1f}% (batch-1 streaming, gated encoders really skipped)"
+                   + (f"; accuracy {100 * f['accuracy']:.2f}% gated vs {100 * e['accuracy']:.2f}% ungated: "
+                      f"{_verdict(comps.get(name), 'gated DS', 'DS')} ({_stat(comps.get(name))})." if f and e else "."))
     return out
+
+
+def _audit_html(audit: dict) -> str:
+    rows = [[r.get("variant", "observed"), r["feature"], r["model"], f"{r['n_train'][0]}/{r['n_train'][1]}", f"{r['n_test'][0]}/{r['n_test'][1]}",
+             _fmt(r.get("n_test_scenes")), _fmt(r.get("score"), pct=True), _fmt(r.get("ci_low"), pct=True),
+             _fmt(r.get("ci_high"), pct=True), html.escape(r["status"])] for r in audit["baselines"]]
+    verdict = ("<b style='color:#b00'>SHORTCUT FOUND</b>: a target-blind baseline beats chance; the class is "
+               "readable without the target." if audit["shortcut"] else
+               "<b>No shortcut found</b>: every target-blind baseline is at chance (its CI includes 50%).")
+    return ("<h2>Shortcut audit (target-blind baselines)</h2><p>" + verdict + "</p><p class='note'>Fitted on train, "
+            "scored on test; balanced accuracy (chance 50%), 95% CI by resampling test scenes. Features describe the "
+            "scene, not the drone: median frame colour, colour of the target-free top/bottom strips, mean MFCC and "
+            "mean RF spectrum on segments where the simulator says that sensor does not observe the drone. "
+            "n = drone/background segments. Where twins exist the <i>twin_counterfactual</i> rows decide (a drone clip's "
+            "features taken from its drone-absent twin: only a difference other than the drone can be learned); "
+            "<i>observed</i> rows above chance there show drone signal in the feature, not a shortcut.</p>" + _table(
+                ["variant", "feature", "model", "n train", "n test", "test scenes", "balanced acc %", "CI low", "CI high",
+                 "status"], rows, "audit"))
+
+
+def _observability_html(ev: dict) -> str:
+    obs = ev.get("observability") or {}
+    if not obs:
+        return ""
+    fig = _fig(6.0, 3.0)
+    ax = fig.add_subplot(1, 1, 1)
+    for split, col in (("train", "tab:blue"), ("val", "tab:green"), ("test", "tab:red")):
+        o = obs.get(split)
+        if o and o["px_hist"]:
+            h = np.asarray(o["px_hist"], float)
+            ax.stairs(h / max(h.sum(), 1), np.asarray(o["px_edges"], float), label=f"{split} (n={int(h.sum())})",
+                      color=col)
+    ax.set_xlabel("apparent drone size per segment (px, 112 px frame)")
+    ax.set_ylabel("fraction of drone segments")
+    ax.legend(fontsize=7)
+    rows = [[s, _fmt(o["n_clips"]), _fmt(o["n_drone_clips"]), _fmt(o.get("px_median")),
+             *[_fmt(o["observed_fraction"].get(m), pct=True) for m in ("video", "audio", "rf")]] for s, o in obs.items()]
+    vb = ev.get("video_by_size") or {}
+    size_rows = [[f"{b['px_low']:g}-{b['px_high']:g}", _fmt(b["n"]), _fmt(b["accuracy"], pct=True)]
+                 for b in vb.get("bins", []) if b["n"]]
+    return ("<h2>What each sensor can see (simulator truth)</h2>" + _img(_png(fig), "Apparent drone size per segment")
+            + _table(["split", "clips", "drone clips", "median px", "video observes %", "audio observes %",
+                      "RF observes %"], rows, "observability")
+            + "<h3>Video accuracy by drone size (EDL video model, clean test, mean over training runs)</h3>"
+            + _table(["drone px", "segments", "accuracy %"], size_rows, "bysize")
+            + f"<p class='note'>Background test segments: {_fmt(vb.get('background_accuracy'), pct=True)}% correct.</p>")
+
+
+def _comparisons_html(comps: list[dict]) -> str:
+    rows = [[html.escape(b["comparison"]), _fmt(b["n_segments"]), _fmt(b.get("n_clusters")),
+             _fmt(None if b["delta_accuracy"] is None else 100 * b["delta_accuracy"]),
+             _fmt(None if b.get("ci_low") is None else 100 * b["ci_low"]),
+             _fmt(None if b.get("ci_high") is None else 100 * b["ci_high"]),
+             _fmt(b.get("p_permutation")), _fmt(b.get("p_bootstrap")),
+             _fmt(None if b.get("mde") is None else 100 * b["mde"]), html.escape(b.get("verdict", ""))] for b in comps]
+    return ("<h2>Paired comparisons</h2><p class='note'>Per-segment correctness averaged over training runs and noise "
+            "seeds, then per scene (the cluster unit: a drone clip and its twin share one). p: two-sided sign-flip "
+            "permutation test over scenes (calibrated at this cluster count; see the null-simulation test); CI: "
+            "scene-clustered bootstrap; MDE: minimum detectable difference at 80% power, 2-sided 5%. "
+            "'No difference' is written only when the MDE is below the effect of interest.</p>" + _table(
+                ["comparison (A &minus; B, accuracy)", "segments", "scenes", "&Delta; pp", "CI low", "CI high",
+                 "p perm.", "p boot.", "MDE pp", "verdict"], rows, "bootstrap"))
+
+
+def _conflict_html(conf: dict) -> str:
+    rows = []
+    for p in conf["programs"]:
+        acc = p.get("accuracy", {})
+        rows.append([html.escape(p["program"]), p["kind"], "+".join(p["modalities"]), _fmt(p.get("n_targeted")),
+                     _fmt(p.get("flip_rate"), p.get("flip_rate_std_training"), pct=True),
+                     _fmt(p.get("wrong_class_probability")),
+                     _fmt((p.get("ds_conflict") or {}).get("mean")), _fmt(p.get("fallback_rate"), pct=True),
+                     *[_fmt(acc.get(r), pct=True) for r in ("majority_vote", "average", "ds", "yager", "discounted",
+                                                            "late", "gmu")],
+                     _fmt(p.get("ds_average_disagree_rate"), pct=True), html.escape(p["status"])])
+    hdr = ["program", "kind", "compromised", "targeted segs", "vote flips %", "P(wrong)", "mean C", "DS fallback %",
+           "majority %", "average %", "DS %", "Yager %", "discounted %", "Late F. %", "GMU %", "DS&ne;avg %", "status"]
+    where = []
+    for p in conf["programs"]:
+        for w in p.get("disagreements", [])[:3]:
+            where.append([html.escape(p["program"]), html.escape(w["clip"]), _fmt(w["segment"]),
+                          ["Drone", "Background"][w["label"]], ["Drone", "Background"][w["ds"]],
+                          ["Drone", "Background"][w["average"]],
+                          html.escape("; ".join(f"{m} ({a[0]:.1f}, {a[1]:.1f})" for m, a in zip(MODALITIES, w["alpha"])))])
+    fig = _fig(6.0, 3.2)
+    ax = fig.add_subplot(1, 1, 1)
+    for p in conf["programs"]:
+        c = p.get("ds_conflict")
+        if c and sum(c["hist"]):
+            h = np.asarray(c["hist"], float)
+            ax.stairs(h / h.sum(), np.asarray(c["edges"]), label=p["program"])
+    ax.axvline(conf["c_max"], color="k", ls=":", label="C_max (fallback)")
+    ax.set_xlabel("DS conflict C on targeted segments")
+    ax.set_ylabel("fraction")
+    ax.legend(fontsize=6, ncol=2)
+    legacy = [[html.escape(x["program"]), x.get("modality", "-"), _fmt(x.get("n_targeted")),
+               _fmt(x.get("flip_rate"), pct=True), html.escape(x.get("status", "no compromised segment"))]
+              for x in conf.get("legacy_programs", [])]
+    return ("<h2>Conflict study: realised effect per program</h2><p class='note'>Twin-swap programs: inside the "
+            "middle half of each test clip the compromised sensor's stream moves to the scene's counterfactual twin "
+            "(blind: a drone clip's sensor loses the drone; decoy: a background clip's sensor gains a drone's "
+            "signature; strength &lt; 1 = weakly wrong). Targeted = segments where the drone clip's sensor observes the "
+            "drone (truth). Vote flips: share of targeted segments where the compromised sensor's EDL vote changes "
+            "vs the same clip without the program, mean &plusmn; std over training runs; P(wrong): its mean "
+            "probability of the wrong class there. Rule accuracies are on the targeted segments. 'bites' = flips "
+            "&ge; 50%; 'inert' = flips &lt; 5%.</p>" + _table(hdr, rows, "conflict")
+            + _img(_png(fig), "DS conflict C per program")
+            + ("<h3>Where DS and averaging decide differently (first training run)</h3>"
+               + _table(["program", "clip", "segment", "truth", "DS", "average", "alpha (Drone, Background) per sensor"],
+                        where, "where") if where else "<p>DS and averaging never decided differently.</p>")
+            + (("<h3>Older degradation-based programs</h3>" + _table(
+                ["program", "modality", "compromised segs", "vote flips %", "status"], legacy, "legacy")) if legacy else ""))
+
+
+def _temperature_html(ev: dict) -> str:
+    temps = ev.get("temperatures") or []
+    if not temps:
+        return ""
+    names = [k[2:] for k in temps[0] if k.startswith("T_")]
+    rows = [[str(t["run"]), *[_fmt(t[f"T_{n}"]) + (f" <b>(at {t[f'bound_{n}']} bound)</b>" if t.get(f"bound_{n}") else "")
+                              for n in names]] for t in temps]
+    return ("<h3>Temperatures (fitted on validation outputs under the test noise protocol)</h3>"
+            + _table(["training run", *names], rows, "temps")
+            + "<p class='note'>A temperature at a bound of the search is not a calibrated optimum and is flagged.</p>")
 
 
 def _reliability(npz, keys: list[tuple[str, str]], bins: int) -> str:
@@ -252,17 +390,23 @@ def build_report(run_dir: str | Path) -> Path:
         return json.loads(p.read_text()) if p.is_file() else None
 
     ev, sweep, conflict, gate = load("evaluate.json"), load("sweep.json"), load("conflict.json"), load("gate.json")
-    train, run = load("train.json"), load("run.json") or {}
+    train, run, audit = load("train.json"), load("run.json") or {}, load("audit.json")
     if ev is None or train is None:
         from scenes.errors import UserInputError
 
         raise UserInputError(f"{str(run_dir)!r}: run `evids train` and `evids evaluate` before `evids report`")
     parts = [f"<h1>evids experiment report</h1><p class='note'>Run folder: {html.escape(str(run_dir.name))}; built "
              f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}. Test split: "
-             f"{train['segments']['test']} segments from {len(train['split']['test'])} clips; majority-class accuracy "
-             f"{100 * ev['majority_class_accuracy']:.1f}%. Noise seeds {train['noise_seeds']}; split seed "
-             f"{train['split_seed']}. Nothing was tuned on the test split (gate point and temperature: validation).</p>"]
-    parts.append("<h2>Answers</h2><ul>" + "".join(f"<li>{h}</li>" for h in headline(ev, conflict, gate)) + "</ul>")
+             f"{train['segments']['test']} segments from {len(train['split']['test'])} clips in "
+             f"{train.get('n_scenes', {}).get('test', '?')} scenes never seen in training (split unit: "
+             f"{train.get('split_unit', 'clip')}); majority-class accuracy "
+             f"{100 * ev['majority_class_accuracy']:.1f}%. Training seeds {train.get('training_seeds')}; noise seeds "
+             f"{train['noise_seeds']}. Nothing was tuned on the test split (gate point, fusion heads and temperatures: "
+             "validation).</p>"]
+    if audit:
+        parts.append(_audit_html(audit))
+    parts.append("<h2>Answers</h2><ul>" + "".join(f"<li>{h}</li>" for h in headline(ev, conflict, gate, audit)) + "</ul>")
+    parts.append(_observability_html(ev))
     hdr = ["condition", "inputs", "accuracy %", "macro-F1", "ECE", "NLL", "Brier", "UAUC entropy", "UAUC vacuity",
            "mean C", "fallback", "skip"]
     rows = []
@@ -272,19 +416,15 @@ def build_report(run_dir: str | Path) -> Path:
                      _fmt(c["brier"]), _fmt(c["uauc_entropy"], c.get("uauc_entropy_std")),
                      _fmt(c.get("uauc_vacuity"), c.get("uauc_vacuity_std")), _fmt(c.get("mean_conflict")),
                      _fmt(c.get("fallback_rate")), _fmt(c.get("skip_rate"))])
-    parts.append("<h2>Conditions</h2><p class='note'>Mean &plusmn; std over noise seeds. Inputs: standard = audio + "
+    parts.append("<h2>Conditions</h2><p class='note'>Mean &plusmn; std over training runs x noise seeds (the std "
+                 "covers training variance and test-time noise). Inputs: standard = audio + "
                  "video noise, RF clean (as the paper's E2); all_spec = plus RF spectrogram-domain noise; iq = plus RF "
                  "noise on I/Q before the STFT; clean = no noise.</p>" + _table(hdr, rows, "conditions"))
     if ev.get("skipped"):
         parts.append("<p class='note'>Skipped: " + "; ".join(f"{s['condition']}: {html.escape(s['reason'])}"
                                                            for s in ev["skipped"]) + "</p>")
-    bh = ["comparison (A &minus; B, accuracy)", "segments", "clips", "&Delta; pp", "CI low", "CI high", "p"]
-    brows = [[html.escape(b["comparison"]), _fmt(b["n_segments"]), _fmt(b["n_clips"]),
-              _fmt(None if b["delta_accuracy"] is None else 100 * b["delta_accuracy"]),
-              _fmt(None if b["ci_low"] is None else 100 * b["ci_low"]),
-              _fmt(None if b["ci_high"] is None else 100 * b["ci_high"]), _fmt(b["p_value"])]
-             for b in ev["bootstrap"] + (conflict["bootstrap"] if conflict else [])]
-    parts.append("<h2>Clip-clustered paired bootstrap</h2>" + _table(bh, brows, "bootstrap"))
+    parts.append(_temperature_html(ev))
+    parts.append(_comparisons_html(ev.get("comparisons", ev.get("bootstrap", []))))
     pred = run_dir / "predictions.npz"
     if pred.is_file():
         with np.load(pred, allow_pickle=False) as npz:
@@ -294,31 +434,12 @@ def build_report(run_dir: str | Path) -> Path:
                                                               "Reliability diagrams, first noise seed (15 bins)"))
     if sweep:
         parts.append("<h2>Degradation sweep</h2><p class='note'>One modality degraded at a time (others clean); "
-                     f"mean &plusmn; std over noise seeds {sweep['seeds']}.</p>")
+                     f"mean &plusmn; std over training runs x noise seeds {sweep['seeds']}.</p>")
         for metric in ("accuracy", "ece", "uauc_entropy", "uauc_vacuity"):
             parts.append(_img(_sweep_fig(sweep["rows"], metric), f"{metric} vs severity"))
-    if conflict:
-        parts.append("<h2>Conflict study</h2><p class='note'>Programs "
-                     f"{', '.join(conflict['programs'])} on every test clip; conflicting = some modality compromised "
-                     "while another is not (from the degradation record).</p>")
-        rules = sorted({r["rule"] for r in conflict["rules"]}, key=lambda x: (x == "ds_fallback_rate", x))
-        progs = list(dict.fromkeys(r["program"] for r in conflict["rules"]))
-        lut = {(r["program"], r["segments"], r["rule"]): r for r in conflict["rules"]}
-        crow = []
-        for p in progs:
-            for s in ("agreeing", "conflicting"):
-                cells = [p, s, _fmt(lut.get((p, s, rules[0]), {}).get("n"))]
-                for r in rules:
-                    v = lut.get((p, s, r), {}).get("accuracy")
-                    cells.append(_fmt(v, pct=True))
-                crow.append(cells)
-        parts.append(_table(["program", "segments", "n", *[f"{r} %" for r in rules]], crow, "conflict"))
-        parts.append(_img(_conflict_fig(conflict), "Distribution of the DS conflict C"))
-        ua = [[u["modality"], _fmt(u["n_compromised"]), _fmt(u["uauc_vacuity_vs_compromised"]),
-               _fmt(u["mean_u_compromised"]), _fmt(u["mean_u_clean"])] for u in conflict["uauc_compromised"]]
-        parts.append("<h3>Does a modality's vacuity rise when it is the compromised one?</h3>" + _table(
-            ["modality", "compromised segments", "UAUC(u vs compromised)", "mean u compromised", "mean u otherwise"],
-            ua, "uauc"))
+    if conflict and "programs" in conflict and isinstance(conflict["programs"], list) and \
+            (not conflict["programs"] or isinstance(conflict["programs"][0], dict)):
+        parts.append(_conflict_html(conflict))
     if gate:
         t = gate["timing"]
         parts.append("<h2>Gating</h2>" + _img(_gate_fig(gate), "Gate sweep: accuracy vs skip rate (test; the chosen "
@@ -333,6 +454,9 @@ def build_report(run_dir: str | Path) -> Path:
     if ex.is_file():
         parts.append("<h2>Example scenarios</h2>" + _img(base64.b64encode(ex.read_bytes()).decode("ascii"),
                                                           "Video frame, MFCC and RF spectrogram, clean and degraded"))
+    if (run_dir / "detection" / "detection.html").is_file():  # `evids demo --detection` writes it beside this run
+        parts.append("<h2>Detection experiment</h2><p><a href='detection/detection.html'>RGB/thermal detection, fusion "
+                     "and tracking (the paper's E1/E3 on generated video)</a></p>")
     stages = run.get("stages", {})
     parts.append("<h2>Run</h2>" + _table(["stage", "seconds"], [[k, _fmt(float(v["seconds"]))] for k, v in stages.items() if k != "complete"])
                  + "<details><summary>hyper-parameters and training record</summary><pre>"
@@ -346,9 +470,10 @@ def build_report(run_dir: str | Path) -> Path:
     out = run_dir / "report.html"
     write_atomic(out, doc)
     metrics = {"conditions": ev["conditions"], "bootstrap": ev["bootstrap"], "gate_condition_f": ev["gate_condition_f"],
-               "conflict": conflict and {k: conflict[k] for k in ("rules", "uauc_compromised", "bootstrap",
-                                                                  "fallback_rate", "n_segments", "n_conflicting")},
-               "gate_timing": gate and gate["timing"], "headline": headline(ev, conflict, gate)}
+               "comparisons": ev.get("comparisons"), "audit": audit, "rf_noise_effect": ev.get("rf_noise_effect"),
+               "video_by_size": ev.get("video_by_size"), "temperatures": ev.get("temperatures"),
+               "conflict": conflict, "gate_timing": gate and gate["timing"],
+               "headline": headline(ev, conflict, gate, audit)}
     from evids.runfolder import write_json
 
     write_json(run_dir / "metrics.json", metrics)

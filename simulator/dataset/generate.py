@@ -192,11 +192,19 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
             cv2.setNumThreads(int(threads))
         scenario = Scenario.model_validate(task["scenario"])
         cpu0 = time.process_time()
+        # a worker limited to N threads also writes its PNGs on N threads (no oversubscription)
+        writer = {} if threads is None else {"writer_threads": max(1, int(threads))}
+        from simulator.dataset.sequence import PassTimes
+
+        stages = PassTimes()
+        wall0 = time.perf_counter()
         notes: list[str] = []
         written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False,
-                                  overwrite=True, notes=notes)
+                                  times=stages, overwrite=True, notes=notes, **writer)
+        stages.seconds["setup + metadata (rest)"] = time.perf_counter() - wall0 - sum(stages.seconds.values())
         return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
-                "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid(), "notes": notes}
+                "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid(), "stage_s": stages.seconds,
+                "notes": notes}
     except Exception as exc:  # reported per sequence by the driver; other sequences continue
         last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
         where = f" at {Path(last.filename).name}:{last.lineno}" if last else ""

@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import shutil
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,11 +22,13 @@ from simulator.files import (
 )
 from simulator.formats.native import FORMAT_VERSION, frame_name, write_json, write_png
 from simulator.physics.timeline import Timeline, build_timeline
-from simulator.render.labels import CLASS_OF_KIND, frame_labels
+from simulator.render.labels import CLASS_OF_KIND, coverage_labels
 from simulator.sensors.camera import CameraModel
-from simulator.sensors.encode import kelvin_to_counts, rgb_to_srgb8
+from simulator.sensors.encode import rgb_to_srgb8
 
 FORMATS = ("native", "antiuav")
+WRITER_THREADS = 2       # PNG encoding runs beside rendering (cv2 and numpy release the GIL)
+MAX_PENDING_FRAMES = 32  # bound on frames queued for writing (memory: ~6 MB per 640x512 paired frame)
 
 
 @dataclass
@@ -82,14 +85,56 @@ def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
             zf.writestr(info, buf.getvalue())
 
 
+def camera_outputs(recorded, buffers) -> dict[str, np.ndarray]:
+    """The images written for one frame, by path under the sequence folder: what the camera
+    model recorded (``simulator.sensors.camera``) and the exact masks. Labels never pass through
+    here (they come from the exact geometry, before any sensor effect)."""
+    return {
+        "rgb": recorded.rgb8,
+        "thermal": recorded.thermal_counts,
+        "thermal_agc": recorded.thermal_agc8,
+        "masks/rgb": buffers.mask_rgb,
+        "masks/thermal": buffers.mask_thermal,
+    }
+
+
+def _write_frame(folder: Path, index: int, recorded, buffers) -> None:
+    for sub, image in camera_outputs(recorded, buffers).items():
+        write_png(folder / sub / frame_name(index, "png"), image)
+
+
+class _FrameWriter:
+    """Encodes and writes frames on worker threads while the caller renders the next batch."""
+
+    def __init__(self, folder: Path, threads: int = WRITER_THREADS):
+        self.folder = folder
+        self.pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="evids-write")
+        self.pending: list[Future] = []
+
+    def submit(self, index: int, recorded, buffers) -> None:
+        self.pending.append(self.pool.submit(_write_frame, self.folder, index, recorded, buffers))
+        while len(self.pending) > MAX_PENDING_FRAMES:
+            self.pending.pop(0).result()
+
+    def finish(self) -> None:
+        """Wait for every frame; re-raise the first write error."""
+        try:
+            for future in self.pending:
+                future.result()
+        finally:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            self.pending = []
+
+
 def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: int | None = None,
                     formats: tuple[str, ...] = ("native",), preview: bool = False, progress: bool = True,
-                    times: PassTimes | None = None, overwrite: bool = False,
+                    times: PassTimes | None = None, writer_threads: int = WRITER_THREADS, overwrite: bool = False,
                     notes: list[str] | None = None) -> dict[str, Path]:
     """Render ``scenario`` with ``seed`` into ``out_dir``; returns the written paths by kind.
 
     native: ``out_dir/<name>/`` (docs/NATIVE_FORMAT.md); antiuav: ``out_dir/antiuav/<name>/`` and
     ``<name>_visible/``; preview: ``out_dir/<name>_preview.png``. Nothing is left half-written.
+    Frames are rendered in batches (simulator.render.plan) and written by worker threads.
     Existing outputs are replaced only with ``overwrite`` and only if evids wrote them. A camera
     pose that sees nothing is refused before rendering; plausibility findings (a target never in
     view, clipped thermal counts) are appended to ``notes``.
@@ -107,16 +152,15 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
     renderer = SequenceRenderer(timeline)
     camera = CameraModel(timeline, renderer.exposure)  # issue 13: the camera model (sensor: ideal = plain encodings)
     netd = scenario.camera_rig.thermal.netd_k
+    rgb_cam, th_cam = timeline.cameras["rgb"], timeline.cameras["thermal"]
     clipped_px = 0
     counts_max = 2 ** getattr(scenario.camera_rig.thermal, "adc_bits", 16) - 1
-    kpc = scenario.camera_rig.thermal.kelvin_per_count
     written: dict[str, Path] = {}
     final = out_dir / scenario.name
     keep_native = "native" in formats
     staging = final if keep_native else temp_sibling(final, "native")
     with atomic_folder(staging, overwrite=overwrite, kind="sequence") as tmp:
         frames = []
-        iterator = range(timeline.n_frames)
         bar = None
         if progress:
             from rich.progress import (
@@ -130,32 +174,37 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                            TimeRemainingColumn(), transient=True)
             task = bar.add_task("frames", total=timeline.n_frames)
             bar.start()
+        writer = _FrameWriter(tmp, writer_threads)
         try:
-            for i in iterator:
-                t0 = time.perf_counter()
-                buffers = renderer.render_frame(i)
-                t0 = times.add("render (rgb + thermal + masks)", t0)
+            t0 = time.perf_counter()
+            for i, buffers in renderer.iter_frames():
+                t0 = times.add("render (rgb + thermal + coverage)", t0)
+                # the camera model keeps state (bolometer lag): it runs here, in frame order
                 recorded = camera.record(i, buffers.rgb_linear, buffers.thermal_radiance, buffers.thermal_kelvin)
-                t0 = times.add("camera model", t0)
-                write_png(tmp / "rgb" / frame_name(i, "png"), recorded.rgb8)
                 clipped_px += int(np.count_nonzero(np.asarray(recorded.thermal_counts) >= counts_max))
-                write_png(tmp / "thermal" / frame_name(i, "png"), recorded.thermal_counts)
-                write_png(tmp / "thermal_agc" / frame_name(i, "png"), recorded.thermal_agc8)
-                write_png(tmp / "masks" / "rgb" / frame_name(i, "png"), buffers.mask_rgb)
-                write_png(tmp / "masks" / "thermal" / frame_name(i, "png"), buffers.mask_thermal)
-                t0 = times.add("encode + write", t0)
-                kelvin_q = kelvin_to_counts(buffers.thermal_kelvin, kpc).astype(np.float32) * np.float32(kpc)
+                t0 = times.add("camera model", t0)
                 frames.append({
                     "index": i, "time_s": round(float(timeline.times_s[i]), 6),
-                    "rgb": frame_labels(timeline, i, "rgb", buffers.mask_rgb),
-                    "thermal": frame_labels(timeline, i, "thermal", buffers.mask_thermal, kelvin_q, netd),
+                    "rgb": coverage_labels(timeline, i, "rgb", buffers.coverage["rgb"], rgb_cam.width_px, rgb_cam.height_px),
+                    "thermal": coverage_labels(timeline, i, "thermal", buffers.coverage["thermal"], th_cam.width_px,
+                                               th_cam.height_px, netd),
                 })
-                times.add("labels", t0)
+                t0 = times.add("labels", t0)
+                writer.submit(i, recorded, buffers)
+                t0 = times.add("queue for writing", t0)
                 if bar is not None:
                     bar.advance(task)
+            t0 = time.perf_counter()
         finally:
-            if bar is not None:
-                bar.stop()
+            try:
+                writer.finish()
+            finally:
+                renderer_meta = {"exposure": renderer.exposure, "variant": renderer.mi.variant(),
+                                 "layout": renderer.record()}
+                renderer.close()
+                if bar is not None:
+                    bar.stop()
+        times.add("wait for writers", t0)
         objects = [{"id": t.target_id, "name": t.name, "kind": t.kind, "class": CLASS_OF_KIND[t.kind],
                     "size_m": t.size_m} for t in timeline.targets]
         write_json(tmp / "labels.json", {"objects": objects, "frames": frames})
@@ -166,7 +215,8 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
             "n_frames": timeline.n_frames, "frame_rate_hz": scenario.frame_rate_hz,
             "cameras": {"rgb": _camera_meta(timeline, "rgb"), "thermal": _camera_meta(timeline, "thermal")},
             "sensor": camera.metadata(),
-            "rgb_exposure": round(renderer.exposure, 9), "mitsuba_variant": renderer.mi.variant(),
+            "rgb_exposure": round(renderer_meta["exposure"], 9), "mitsuba_variant": renderer_meta["variant"],
+            "render_layout": renderer_meta["layout"],
             "versions": package_versions(),
         })
         write_hashes(tmp)
@@ -184,7 +234,6 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
             if overwrite:
                 remove_output(out_dir / "antiuav" / scenario.name)
                 remove_output(out_dir / "antiuav" / f"{scenario.name}_visible")
-
             ir, vis = export_antiuav(staging, out_dir / "antiuav", scenario.name)
             write_marker(ir, "render antiuav")  # so a later `render --overwrite` may replace them
             write_marker(vis, "render antiuav")
@@ -200,7 +249,8 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
 
 
 def render_rgb_video(scenario: Scenario, seed: int, n_frames: int, width_px: int, height_px: int) -> np.ndarray:
-    """(F, H, W, 3) uint8 RGB frames at a chosen size (for small-video datasets such as TRIDENT)."""
+    """(F, H, W, 3) uint8 RGB frames at a chosen size (for small-video datasets such as TRIDENT).
+    RGB only, no labels: whole frames batched many per launch."""
     from simulator.render.renderer import SequenceRenderer
 
     rig = scenario.camera_rig
@@ -211,8 +261,14 @@ def render_rgb_video(scenario: Scenario, seed: int, n_frames: int, width_px: int
     from simulator.dataset.plausibility import check_camera_poses
 
     check_camera_poses(timeline)
-    renderer = SequenceRenderer(timeline)
-    return np.stack([rgb_to_srgb8(renderer.render_frame(i).rgb_linear) for i in range(timeline.n_frames)])
+    renderer = SequenceRenderer(timeline, cameras=("rgb",), labels=False)
+    out = np.empty((timeline.n_frames, height_px, width_px, 3), np.uint8)
+    try:
+        for i, buffers in renderer.iter_frames():
+            out[i] = rgb_to_srgb8(buffers.rgb_linear)
+    finally:
+        renderer.close()
+    return out
 
 
 def load_json(path: Path) -> dict:

@@ -17,8 +17,9 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -77,15 +78,74 @@ class ClipSpec(_Model):
     ambience: Ambience = Field(default_factory=Ambience)
 
     @model_validator(mode="after")
-    def _group_name(self) -> "ClipSpec":
+    def _group_name(self) -> ClipSpec:
         name = self.group or (self.scenario if isinstance(self.scenario, str) else None)
         if name is not None and (not name or "/" in name or name.startswith(".")):
             raise ValueError(f"group must be a plain folder name, got {name!r}")
         return self
 
 
+Span = tuple[float, float]
+
+
+class SceneDistribution(_Model):
+    """Scene conditions drawn from ONE distribution shared by both classes (no class shortcut).
+
+    Scene j draws sky, sun, atmosphere, ambience beds, confusers (birds, airliner), RF interferers
+    (Wi-Fi, Bluetooth) and a drone (kind, size, range, apparent size in the 112 px frame, path);
+    with ``twins`` the generator writes the drone-present clip AND its drone-absent twin with the
+    same seeds, so the two differ only in the drone's own signatures (pixels, rotor sound, links).
+    The drone is the LAST target, so every other source keeps its random-stream index.
+    Scenes are assigned to splits here (the split unit is the scene: both twins share a split).
+    """
+
+    n_scenes: int = Field(ge=3, le=5000)
+    twins: bool = True
+    n_test_scenes: int = Field(default=1, ge=1)
+    n_val_scenes: int = Field(default=1, ge=1)
+    split_seed: int = Field(default=0, ge=0)
+    drone_kinds: list[Literal["quadcopter", "hexacopter", "fixed_wing"]] = Field(
+        default=["quadcopter", "hexacopter", "fixed_wing"], min_length=1)
+    drone_px: Span = Field(default=(3.0, 30.0), description="apparent drone size in the frame (px), log-uniform")
+    range_m: Span = Field(default=(60.0, 400.0), description="drone range, log-uniform")
+    elevation_deg: Span = (4.0, 35.0)
+    path_fraction: Span = Field(default=(0.05, 0.45), description="path length / frame width")
+    rf_silent_probability: float = Field(default=0.2, ge=0.0, le=1.0)
+    sun_elevation_deg: Span = (8.0, 70.0)
+    turbidity: Span = (2.0, 7.0)
+    cloud_probability: float = Field(default=0.4, ge=0.0, le=1.0)
+    cloud_coverage: Span = (0.15, 0.7)
+    air_temperature_k: Span = (273.0, 305.0)
+    relative_humidity: Span = (0.25, 0.95)
+    visibility_m: Span = (4000.0, 40000.0)
+    wind_db: Span = (32.0, 50.0)
+    traffic_probability: float = Field(default=0.4, ge=0.0, le=1.0)
+    traffic_db: Span = (36.0, 52.0)
+    rain_probability: float = Field(default=0.15, ge=0.0, le=1.0)
+    rain_db: Span = (38.0, 52.0)
+    birdsong_probability: float = Field(default=0.4, ge=0.0, le=1.0)
+    birdsong_db: Span = (32.0, 48.0)
+    max_birds: int = Field(default=2, ge=0, le=6)
+    airliner_probability: float = Field(default=0.35, ge=0.0, le=1.0)
+    wifi_probability: float = Field(default=0.6, ge=0.0, le=1.0)
+    wifi_rx_dbm: Span = (-80.0, -58.0)
+    bluetooth_probability: float = Field(default=0.5, ge=0.0, le=1.0)
+    bluetooth_rx_dbm: Span = (-84.0, -64.0)
+
+    @model_validator(mode="after")
+    def _splits(self) -> SceneDistribution:
+        if self.n_test_scenes + self.n_val_scenes >= self.n_scenes:
+            raise ValueError(f"n_test_scenes + n_val_scenes ({self.n_test_scenes} + {self.n_val_scenes}) must leave "
+                             f"at least one of the {self.n_scenes} scenes for training (splits are scene-disjoint)")
+        for name, v in self.model_dump().items():
+            if isinstance(v, tuple) and len(v) == 2 and v[0] > v[1]:
+                raise ValueError(f"{name}: low {v[0]} exceeds high {v[1]}")
+        return self
+
+
 class TridentConfig(_Model):
-    """A TRIDENT-style generation preset (scenes/generation/*.yaml)."""
+    """A TRIDENT-style generation preset (scenes/generation/*.yaml): ``clips`` (listed scenarios)
+    and/or ``scenes`` (scene-balanced drawn scenes with counterfactual twins)."""
 
     name: str = Field(min_length=1)
     description: str = ""
@@ -97,10 +157,18 @@ class TridentConfig(_Model):
     save_iq: bool = True
     jpeg_quality: int = Field(default=95, ge=10, le=100)
     rf: RFConfig = Field(default_factory=RFConfig)
-    clips: list[ClipSpec] = Field(min_length=1)
+    video_render_stride: int = Field(default=1, ge=1, le=28, description=(
+        "render every k-th video frame and hold it k frames (1 = every frame); a budget knob"))
+    clips: list[ClipSpec] = Field(default_factory=list)
+    scenes: SceneDistribution | None = None
 
     @model_validator(mode="after")
-    def _segments(self) -> "TridentConfig":
+    def _segments(self) -> TridentConfig:
+        if not self.clips and self.scenes is None:
+            raise ValueError("give clips (listed scenarios) or scenes (a scene distribution), or both")
+        if self.frames_per_segment % self.video_render_stride:
+            raise ValueError(f"video_render_stride ({self.video_render_stride}) must divide frames_per_segment "
+                             f"({self.frames_per_segment})")
         n_seg = self.clip_duration_s / SEGMENT_S
         if abs(n_seg - round(n_seg)) > 1e-9:
             raise ValueError(f"clip_duration_s must be a multiple of {SEGMENT_S} s, got {self.clip_duration_s}")
@@ -151,29 +219,176 @@ def clip_seed(seed: int, clip_index: int) -> int:
 
 
 # --------------------------------------------------------------------------------------------
+# Scene-balanced generation: one scene distribution, drone clip + drone-absent twin
+# --------------------------------------------------------------------------------------------
 
-def _video_visibility(timeline, n_segments: int, frames_per_segment: int) -> np.ndarray:
+_SCENE_TAG = 11            # "generation" sub-stream of scene draws (independent of clip seeds)
+_DRONE_SIZE_M = {"quadcopter": (0.3, 0.6), "hexacopter": (0.6, 1.1), "fixed_wing": (1.0, 2.2)}
+
+
+def _u(rng: np.random.Generator, span: tuple[float, float]) -> float:
+    return float(rng.uniform(span[0], span[1]))
+
+
+def _logu(rng: np.random.Generator, span: tuple[float, float]) -> float:
+    return float(np.exp(rng.uniform(np.log(span[0]), np.log(span[1]))))
+
+
+
+class DrawnScene(BaseModel):
+    """One drawn scene: the drone clip's scenario, its twin's, and the per-clip settings."""
+
+    model_config = ConfigDict(frozen=True, arbitrary_types_allowed=True)
+    index: int
+    name: str
+    drone: Scenario
+    twin: Scenario
+    ambience: Ambience
+    rf_silent: bool
+    rf: RFConfig
+    conditions: dict[str, Any]
+
+
+def _direction(az_deg: float, el_deg: float) -> np.ndarray:
+    a, e = np.radians(az_deg), np.radians(el_deg)
+    return np.array([np.cos(e) * np.sin(a), np.cos(e) * np.cos(a), np.sin(e)])
+
+
+def draw_scene(dist: SceneDistribution, config: TridentConfig, seed: int, index: int) -> DrawnScene:
+    """Scene ``index`` of a dataset generated with ``seed``: every condition drawn from ``dist``.
+
+    Camera: fixed (not tracking, so the twin's camera is the drone clip's), pointed at the middle of
+    the drone's path, field of view chosen so the drone spans a drawn 3-30 px; the path stays inside
+    the frame (``path_fraction`` of its width). Confusers (birds near drone size, an airliner far
+    behind) are placed in the view and appear in BOTH clips.
+    """
+    rng = rng_for(seed, "generation", _TRIDENT_SEED_TAG, _SCENE_TAG, index)
+    kind = dist.drone_kinds[int(rng.integers(len(dist.drone_kinds)))]
+    size_m = _u(rng, _DRONE_SIZE_M[kind])
+    range_m = _logu(rng, dist.range_m)
+    px = _logu(rng, dist.drone_px)
+    focal_px = px * range_m / size_m
+    half = config.video_px / 2.0
+    hfov = float(np.degrees(2 * np.arctan(half / focal_px)))
+    az, el = _u(rng, (-60.0, 60.0)), _u(rng, dist.elevation_deg)
+    cam = np.array([0.0, 0.0, 1.5])
+    view = _direction(az, el)
+    centre = cam + range_m * view
+    lateral = np.array([np.cos(np.radians(az)), -np.sin(np.radians(az)), 0.0])
+    frame_w_m = config.video_px * size_m / px
+    path_m = _u(rng, dist.path_fraction) * frame_w_m
+    sign = 1.0 if rng.random() < 0.5 else -1.0
+    climb = _u(rng, (-0.15, 0.15)) * path_m
+    p0 = centre - sign * lateral * path_m / 2 - np.array([0, 0, climb / 2])
+    p1 = centre + sign * lateral * path_m / 2 + np.array([0, 0, climb / 2])
+    speed = max(float(np.linalg.norm(p1 - p0)) / config.clip_duration_s, 0.02)
+    drone = {"name": "drone", "kind": kind, "size_m": round(size_m, 4),
+             "trajectory": {"kind": "waypoints", "speed_mps": round(speed, 4),
+                            "points_m": [np.round(p0, 3).tolist(), np.round(p1, 3).tolist()]}}
+    confusers: list[dict] = []
+    for b in range(int(rng.integers(0, dist.max_birds + 1))):
+        r_b = range_m * _u(rng, (0.4, 1.6))
+        b_size = float(np.clip(_logu(rng, (2.0, 24.0)) * r_b / focal_px, 0.15, 1.6))
+        off = _u(rng, (-0.45, 0.45)) * frame_w_m * r_b / range_m
+        up = _u(rng, (-0.35, 0.35)) * frame_w_m * r_b / range_m
+        start = cam + r_b * view + lateral * off + np.array([0, 0, up])
+        v = lateral * (_u(rng, (2.0, 9.0)) * (1 if rng.random() < 0.5 else -1)) + np.array([0, 0, _u(rng, (-0.5, 0.5))])
+        confusers.append({"name": f"bird{b}", "kind": "bird", "size_m": round(b_size, 3),
+                          "wingbeat_hz": round(_u(rng, (2.5, 6.0)), 2),
+                          "trajectory": {"kind": "flyby", "start_m": np.round(start, 2).tolist(),
+                                         "velocity_mps": np.round(v, 3).tolist()}})
+    airliner = rng.random() < dist.airliner_probability or not confusers
+    if airliner:                       # every scene keeps >= 1 confuser (a scenario needs a target)
+        r_a = _u(rng, (5000.0, 11000.0))
+        a_el = float(np.clip(el + _u(rng, (-1.0, 1.0)) * hfov * 0.4, 2.0, 60.0))
+        start = cam + r_a * _direction(az, a_el) - lateral * _u(rng, (0.3, 0.6)) * r_a * np.radians(hfov)
+        v = lateral * _u(rng, (120.0, 220.0))
+        confusers.append({"name": "jet", "kind": "airliner", "size_m": round(_u(rng, (30.0, 60.0)), 1),
+                          "trajectory": {"kind": "flyby", "start_m": np.round(start, 1).tolist(),
+                                         "velocity_mps": np.round(v, 2).tolist()}})
+    sky: dict[str, Any] = {"sun": {"elevation_deg": round(_u(rng, dist.sun_elevation_deg), 2),
+                                   "azimuth_deg": round(_u(rng, (0.0, 360.0)), 2)},
+                           "turbidity": round(_u(rng, dist.turbidity), 2)}
+    cloudy = rng.random() < dist.cloud_probability
+    if cloudy:
+        sky["clouds"] = {"coverage": round(_u(rng, dist.cloud_coverage), 3)}
+    atmosphere = {"air_temperature_k": round(_u(rng, dist.air_temperature_k), 2),
+                  "relative_humidity": round(_u(rng, dist.relative_humidity), 3),
+                  "visibility_m": round(_logu(rng, dist.visibility_m), 1)}
+    amb = {"wind_db": round(_u(rng, dist.wind_db), 1), "gust_depth": round(_u(rng, (0.2, 0.9)), 2)}
+    for bed in ("traffic", "rain", "birdsong"):
+        on = rng.random() < getattr(dist, f"{bed}_probability")
+        level = _u(rng, getattr(dist, f"{bed}_db"))
+        amb[f"{bed}_db"] = round(level, 1) if on else None
+    wifi_on, wifi_db = rng.random() < dist.wifi_probability, _u(rng, dist.wifi_rx_dbm)
+    bt_on, bt_db = rng.random() < dist.bluetooth_probability, _u(rng, dist.bluetooth_rx_dbm)
+    rf = config.rf.model_copy(update={"wifi_rx_dbm": round(wifi_db, 1) if wifi_on else None,
+                                      "bluetooth_rx_dbm": round(bt_db, 1) if bt_on else None})
+    rf_silent = bool(rng.random() < dist.rf_silent_probability)
+    name = f"scene_{index:04d}"
+    base = {"name": name, "duration_s": config.clip_duration_s, "frame_rate_hz": float(config.video_fps),
+            "sky": sky, "atmosphere": atmosphere,
+            "camera_rig": {"position_m": cam.tolist(), "look_at_m": np.round(centre, 3).tolist(),
+                           "rgb": {"width_px": config.video_px, "height_px": config.video_px, "hfov_deg": round(hfov, 4)},
+                           "thermal": {"width_px": 16, "height_px": 16, "hfov_deg": round(hfov, 4)}}}
+    drone_s = Scenario.model_validate({**base, "targets": [*confusers, drone]})
+    twin_s = Scenario.model_validate({**base, "targets": confusers})
+    conditions = {"drone_kind": kind, "drone_size_m": round(size_m, 3), "range_m": round(range_m, 1),
+                  "drone_px_drawn": round(px, 2), "hfov_deg": round(hfov, 3), "elevation_deg": round(el, 2),
+                  "sun_elevation_deg": sky["sun"]["elevation_deg"], "cloudy": bool(cloudy),
+                  "n_birds": sum(c["kind"] == "bird" for c in confusers), "airliner": bool(airliner),
+                  "rain": amb["rain_db"] is not None, "traffic": amb["traffic_db"] is not None,
+                  "wifi": bool(wifi_on), "bluetooth": bool(bt_on), "rf_silent": rf_silent}
+    return DrawnScene(index=index, name=name, drone=drone_s, twin=twin_s, ambience=Ambience(**amb),
+                      rf_silent=rf_silent, rf=rf, conditions=conditions)
+
+
+def scene_splits(dist: SceneDistribution) -> list[str]:
+    """Split of every scene (train / val / test), seeded; the split unit is the scene."""
+    rng = rng_for(dist.split_seed, "generation", _TRIDENT_SEED_TAG, _SCENE_TAG, 10 ** 6)
+    order = rng.permutation(dist.n_scenes)
+    out = ["train"] * dist.n_scenes
+    for k, j in enumerate(order):
+        if k < dist.n_test_scenes:
+            out[j] = "test"
+        elif k < dist.n_test_scenes + dist.n_val_scenes:
+            out[j] = "val"
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+
+def drone_px_per_frame(timeline) -> np.ndarray:
+    """Largest apparent size (px) of a drone inside the RGB frame per frame (0 where none is in view)."""
     cam = timeline.cameras["rgb"]
-    n_frames = timeline.n_frames
-    visible = np.zeros(n_frames, bool)
+    out = np.zeros(timeline.n_frames)
     for track in timeline.targets:
         if track.kind not in DRONE_KINDS:
             continue
-        for i in range(n_frames):
+        for i in range(timeline.n_frames):
             xy, depth = cam.project(i, track.position_m[i])
             d = float(depth[0])
             if d <= 0:
                 continue
-            size_px = track.size_m * cam.focal_px / d
             inside = 0 <= xy[0, 0] < cam.width_px and 0 <= xy[0, 1] < cam.height_px
-            visible[i] |= inside and size_px >= VISIBLE_MIN_PX
+            if inside:
+                out[i] = max(out[i], track.size_m * cam.focal_px / d)
+    return out
+
+
+def _per_segment(values: np.ndarray, n_segments: int, frames_per_segment: int) -> np.ndarray:
     need = n_segments * frames_per_segment
-    visible = np.pad(visible, (0, max(0, need - n_frames)))[:need].reshape(n_segments, frames_per_segment)
-    return visible.sum(axis=1) * 2 > frames_per_segment
+    return np.pad(values, (0, max(0, need - values.size)))[:need].reshape(n_segments, frames_per_segment)
+
+
+def _video_visibility(timeline, n_segments: int, frames_per_segment: int) -> np.ndarray:
+    visible = drone_px_per_frame(timeline) >= VISIBLE_MIN_PX
+    return _per_segment(visible, n_segments, frames_per_segment).sum(axis=1) * 2 > frames_per_segment
 
 
 def synthesize_clip(scenario: Scenario, seed: int, config: TridentConfig, *, rf_silent: bool = False,
-                    ambience: Ambience | None = None, frames: np.ndarray | None = None) -> TridentClip:
+                    ambience: Ambience | None = None, frames: np.ndarray | None = None,
+                    rf_config: RFConfig | None = None) -> TridentClip:
     """Audio, MFCC, RF and ground truth of one clip; ``scenario`` is already re-timed (clip_scenario).
 
     ``frames`` (rendered elsewhere) are checked for shape and kept; None leaves the clip without video.
@@ -187,9 +402,10 @@ def synthesize_clip(scenario: Scenario, seed: int, config: TridentConfig, *, rf_
     samples = (audio.mix_pa.astype(np.float64) / config.full_scale_pa).astype(np.float32)
     mfcc = mfcc_segments(samples, fs, n_seg)
     starts = np.arange(n_seg) * SEGMENT_S
-    rf = synthesize_rf(timeline, seed, starts, config=config.rf, rf_silent=rf_silent,
+    rf_cfg = rf_config or config.rf
+    rf = synthesize_rf(timeline, seed, starts, config=rf_cfg, rf_silent=rf_silent,
                        clip_duration_s=config.clip_duration_s)
-    images = spectrogram_image(rf.spectrogram_dbm, config.rf)
+    images = spectrogram_image(rf.spectrogram_dbm, rf_cfg)
     label = clip_label(scenario)
     seg_len = int(round(SEGMENT_S * fs))
     drone_names = [t.name for t in timeline.targets if t.kind in DRONE_KINDS]
@@ -239,6 +455,66 @@ def _content_hash(root: Path) -> str:
     return digest.hexdigest()
 
 
+class PlanItem(BaseModel):
+    """One clip to write: its folder group, scenario, seed and per-clip settings."""
+
+    model_config = ConfigDict(frozen=True, arbitrary_types_allowed=True)
+    group: str
+    scenario: Scenario
+    seed: int
+    rf_silent: bool = False
+    ambience: Ambience | None = None
+    rf: RFConfig | None = None
+    meta: dict[str, Any] = Field(default_factory=dict)
+
+
+def build_plan(config: TridentConfig, seed: int) -> list[PlanItem]:
+    """Listed clips first (clip k: seed clip_seed(seed, k)), then each drawn scene's drone clip and
+    twin (both with seed clip_seed(seed, 10**6 + j): every stream shares its draws)."""
+    plan: list[PlanItem] = []
+    for i, spec in enumerate(config.clips):
+        scenario = clip_scenario(resolve_scenario(spec, source=f"clips.{i}.scenario"), config)
+        group = spec.group or scenario.name
+        for _ in range(spec.count):
+            plan.append(PlanItem(group=group, scenario=scenario, seed=clip_seed(seed, len(plan)),
+                                 rf_silent=spec.rf_silent, ambience=spec.ambience))
+    if config.scenes is not None:
+        splits = scene_splits(config.scenes)
+        for j in range(config.scenes.n_scenes):
+            sc = draw_scene(config.scenes, config, seed, j)
+            s_seed = clip_seed(seed, 10 ** 6 + j)
+            first = len(plan) + 1
+            common = {"scene": sc.name, "split": splits[j], "conditions": sc.conditions}
+            plan.append(PlanItem(group=sc.name, scenario=sc.drone, seed=s_seed, rf_silent=sc.rf_silent,
+                                 ambience=sc.ambience, rf=sc.rf,
+                                 meta={**common, "twin": first + 1 if config.scenes.twins else None}))
+            if config.scenes.twins:
+                plan.append(PlanItem(group=sc.name, scenario=sc.twin, seed=s_seed, rf_silent=sc.rf_silent,
+                                     ambience=sc.ambience, rf=sc.rf, meta={**common, "twin": first}))
+    return plan
+
+
+def render_clip_frames(scenario: Scenario, seed: int, config: TridentConfig, frames_fn: FramesFn,
+                       n_frames: int) -> np.ndarray:
+    """Video frames of a clip; with ``video_render_stride`` k every k-th frame is rendered and held."""
+    k = config.video_render_stride
+    if k == 1:
+        return np.asarray(frames_fn(scenario, seed, n_frames, config.video_px, config.video_px), dtype=np.uint8)
+    slow = scenario.model_copy(update={"frame_rate_hz": scenario.frame_rate_hz / k})
+    few = np.asarray(frames_fn(slow, seed, n_frames // k, config.video_px, config.video_px), dtype=np.uint8)
+    return np.repeat(few, k, axis=0)
+
+
+def segment_drone_px(scenario: Scenario, seed: int, config: TridentConfig) -> np.ndarray:
+    """Mean apparent drone size (px) per segment over the frames where it is in view (0: none)."""
+    from simulator.physics.timeline import build_timeline
+
+    px = _per_segment(drone_px_per_frame(build_timeline(scenario, seed)), config.n_segments,
+                      config.frames_per_segment)
+    seen = px > 0
+    return np.where(seen.any(1), px.sum(1) / np.maximum(seen.sum(1), 1), 0.0)
+
+
 def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir: str | Path, seed: int, *,
                      n_clips: int | None = None, progress: bool = True,
                      render_frames: FramesFn | None = None) -> Path:
@@ -257,11 +533,7 @@ def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir:
         raise UserInputError(f"output directory {str(out)!r} exists and is not empty; choose a new --out")
     if n_clips is not None and n_clips < 1:
         raise UserInputError(f"n_clips must be >= 1, got {n_clips}")
-    plan: list[tuple[ClipSpec, Scenario, str]] = []
-    for i, spec in enumerate(config.clips):
-        scenario = clip_scenario(resolve_scenario(spec, source=f"clips.{i}.scenario"), config)
-        group = spec.group or scenario.name
-        plan.extend((spec, scenario, group) for _ in range(spec.count))
+    plan = build_plan(config, seed)
     if n_clips is not None:
         plan = plan[:n_clips]
     frames_fn = render_frames or _default_frames
@@ -282,14 +554,14 @@ def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir:
 
             steps = track(steps, description=f"trident {config.name}", total=len(plan))
         for k in steps:
-            spec, scenario, group = plan[k]
-            seed_k = clip_seed(seed, k)
-            frames = np.asarray(frames_fn(scenario, seed_k, n_frames, config.video_px, config.video_px), dtype=np.uint8)
-            clip = synthesize_clip(scenario, seed_k, config, rf_silent=spec.rf_silent, ambience=spec.ambience,
-                                   frames=frames)
-            meta = {"scenario": scenario.name, "seed": seed_k, "label": clip.truth.label}
-            write_clip(tmp, group, k + 1, clip, config, meta)
-            clips_meta.append({"clip": k + 1, "group": group, **meta})
+            item = plan[k]
+            frames = render_clip_frames(item.scenario, item.seed, config, frames_fn, n_frames)
+            clip = synthesize_clip(item.scenario, item.seed, config, rf_silent=item.rf_silent,
+                                   ambience=item.ambience, frames=frames, rf_config=item.rf)
+            meta = {"scenario": item.scenario.name, "seed": item.seed, "label": clip.truth.label, **item.meta,
+                    "drone_px": [round(float(v), 2) for v in segment_drone_px(item.scenario, item.seed, config)]}
+            write_clip(tmp, item.group, k + 1, clip, config, meta)
+            clips_meta.append({"clip": k + 1, "group": item.group, **{m: v for m, v in meta.items() if m != "drone_px"}})
         manifest = {
             "format": "trident", "generator": "simulator.dataset.trident.generate_trident", "seed": int(seed),
             "config": config.model_dump(mode="json"), "clips": clips_meta, "versions": _versions(),

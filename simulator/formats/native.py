@@ -13,6 +13,9 @@ import cv2
 import numpy as np
 
 FORMAT_VERSION = 1
+# zlib level 1: measured on rendered frames (docs/BENCHMARKS.md, "PNG level"): ~30 % less encode
+# time than level 3 for ~15 % larger files; levels >= 6 cost 2-30x more for < 25 % smaller files
+PNG_COMPRESSION = 1
 
 
 def frame_name(index0: int, ext: str) -> str:
@@ -35,7 +38,7 @@ def write_png(path: Path, image: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     if image.ndim == 3:
         image = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
-    if not cv2.imwrite(str(path), image, [cv2.IMWRITE_PNG_COMPRESSION, 3]):
+    if not cv2.imwrite(str(path), image, [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION]):
         raise OSError(f"could not write {path}")
 
 

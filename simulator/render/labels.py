@@ -1,8 +1,18 @@
-"""Per-frame, per-camera, per-object labels computed from the id masks (never from projections)."""
+"""Per-frame, per-camera, per-object labels.
+
+``coverage_labels`` (what the renderer writes) takes each target's exact coverage from the
+renderer's coverage rays (a regular 8 x 8 grid per pixel against the true geometry, occlusion
+included): the box is the tight box of every pixel the silhouette touches, ``visible_px`` the
+covered area in pixels (sub-pixel targets keep their fraction), and the thermal contrast comes
+from the target's own at-sensor radiance against the sky behind it, not from partially covered
+pixels. ``frame_labels``/``tight_box``/``local_contrast_k`` work on id masks (files on disk,
+degraded data).
+"""
 from __future__ import annotations
 
 import numpy as np
 
+from simulator.physics import thermal
 from simulator.physics.timeline import Timeline
 
 CLASS_OF_KIND = {"quadcopter": "drone", "hexacopter": "drone", "fixed_wing": "drone", "bird": "bird", "airliner": "aircraft"}
@@ -63,5 +73,56 @@ def frame_labels(timeline: Timeline, frame: int, camera: str, id_mask: np.ndarra
             contrast = local_contrast_k(kelvin, id_mask, track.target_id, box) if box is not None else None
             record["contrast_k"] = None if contrast is None or np.isnan(contrast) else round(contrast, 5)
             record["crossover"] = bool(record["contrast_k"] is not None and abs(record["contrast_k"]) < netd_k)
+        records.append(record)
+    return records
+
+
+def _box_of_coverage(cov) -> list[int] | None:
+    """[x, y, w, h] of the pixels with any coverage (full-frame coordinates), None if none."""
+    box = tight_box(cov.coverage > 0)
+    if box is None:
+        return None
+    return [box[0] + cov.region[0], box[1] + cov.region[1], box[2], box[3]]
+
+
+def target_contrast_k(cov) -> float:
+    """Brightness temperature of the target's visible surface (its parts' at-sensor radiances
+    weighted by their visible area) minus that of the sky behind it (coverage-weighted)."""
+    area = sum(cov.role_px.values())
+    radiance = sum(cov.role_px[r] * cov.role_radiance[r] for r in cov.role_px) / area
+    return float(thermal.brightness_temperature(radiance) - thermal.brightness_temperature(cov.sky_radiance))
+
+
+def coverage_labels(timeline: Timeline, frame: int, camera: str, coverage: list, width: int, height: int,
+                    netd_k: float | None = None) -> list[dict]:
+    """One record per target for this camera and frame, from the renderer's coverage.
+
+    ``exist`` = 1 when any coverage ray of the frame hits the target (unchanged meaning: some part
+    of it is visible in the image); ``box`` = tight box of the touched pixels (``[]`` when absent);
+    ``visible_px`` = covered area in pixels (float, 1/64 px resolution); thermal records add
+    ``contrast_k`` (target radiance vs sky behind it) and ``crossover`` (|contrast_k| < NETD).
+    """
+    cam = timeline.cameras[camera]
+    by_id = {c.target_id: c for c in coverage}
+    records = []
+    for track in timeline.targets:
+        cov = by_id.get(track.target_id)
+        box = _box_of_coverage(cov) if cov is not None else None
+        range_m = float(np.linalg.norm(track.position_m[frame] - cam.origin_m[frame]))
+        record = {
+            "id": track.target_id,
+            "name": track.name,
+            "class": CLASS_OF_KIND[track.kind],
+            "exist": int(box is not None),
+            "box": box if box is not None else [],
+            "visible_px": round(cov.visible_px, 4) if box is not None else 0.0,
+            "range_m": round(range_m, 4),
+            "truncated": bool(box is not None and (box[0] == 0 or box[1] == 0 or box[0] + box[2] == width
+                                                    or box[1] + box[3] == height)),
+        }
+        if netd_k is not None:
+            contrast = round(target_contrast_k(cov), 5) if box is not None else None
+            record["contrast_k"] = contrast
+            record["crossover"] = bool(contrast is not None and abs(contrast) < netd_k)
         records.append(record)
     return records

@@ -1,4 +1,4 @@
-"""Mitsuba backend: a Timeline -> per-frame RGB radiance, thermal radiance and object-id masks.
+"""Mitsuba backend: a Timeline -> per-frame RGB radiance, thermal radiance, coverage masks.
 
 One scene graph per camera, sharing geometry built from the same procedural meshes:
 - RGB: Hosek-Wilkie ``sunsky`` sky (baked once into an environment map, with optional clouds) plus
@@ -7,18 +7,23 @@ One scene graph per camera, sharing geometry built from the same procedural mesh
 - Thermal: every part is an emitter of its at-sensor band radiance
   tau (eps L(T) + (1 - eps) L_refl) + L_path (LOWTRAN7 tables) over an LWIR sky map (simulator.physics.sky);
   one bounce suffices because the physics is folded into the emission (no Mitsuba thermal physics).
-- Masks: the same scene at 1 spp with a box filter and only direct emission, where each shape emits
-  its target id and the sky emits nothing, so a pixel's value is exactly the id it sees (0 = sky).
-  (Mitsuba's shape_index AOV does not follow scene.shapes() order, so it is not used.)
+- Batched: many frames per launch (Mitsuba's ``batch`` sensor, one sub-sensor per tile; each frame's
+  world is its own copy, see simulator.render.plan). Small frames are whole tiles; on large frames
+  only a tile around each target is traced and the rest is the sky evaluated at pixel centres.
+- Coverage (exact labels): a regular 8 x 8 grid of rays per pixel over each target's projected box,
+  intersected with the same scene after the radiance launch; the shape each ray hits gives the
+  target and part. Deterministic (no random samples), so identically placed cameras get identical
+  masks and boxes; the pixel's coverage is the fraction of its rays that hit the target.
 Mitsuba is imported lazily (simulator.render.mitsuba_setup) so nothing else depends on it.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
+from functools import cached_property, lru_cache
 
 import numpy as np
 
-from scenes.assets import build_asset
 from scenes.defaults import material_for
 from simulator.physics import thermal
 from simulator.physics.sky import (
@@ -27,7 +32,18 @@ from simulator.physics.sky import (
     direction_from_elevation_azimuth,
     sun_elevation_azimuth_deg,
 )
-from simulator.physics.timeline import CameraTrack, TargetTrack, Timeline
+from simulator.physics.timeline import Timeline
+from simulator.render.geometry import TrackGeometry
+from simulator.render.plan import (
+    BATCH_FRAMES,
+    COVERAGE_SUBSAMPLES,
+    CameraPlan,
+    Tile,
+    pixel_box,
+    place_tile,
+    plan_camera,
+    projected_boxes,
+)
 from simulator.seeding import render_seed
 
 ENV_WIDTH = 2048
@@ -35,17 +51,66 @@ ENV_HEIGHT = 1024
 SUN_SOLID_ANGLE_SR = 6.8e-5
 RGB_MAX_DEPTH = 3
 EXPOSURE_KEY = 0.45
+PASS_INDEX = {"rgb": 0, "thermal": 1}  # render_seed pass index per camera
+JITTER_FRAME = 2**31 - 1  # render_seed "frame" of the per-camera primary-sample jitter seed
+
+
+@dataclass
+class TargetCoverage:
+    """Where one target is in one camera's frame, from the coverage rays (exact labels).
+
+    ``coverage`` holds, for the pixels ``[y0:y1, x0:x1]``, the fraction of each pixel covered by the
+    target's visible silhouette (occlusion by other targets included). ``role_px`` is the covered
+    area per part role in pixels; for the thermal camera ``role_radiance`` is each part's at-sensor
+    band radiance and ``sky_radiance`` the sky behind the target (coverage-weighted), both
+    W sr^-1 m^-2, for label contrast from the target's radiance rather than from partial pixels.
+    """
+
+    target_id: int
+    region: tuple[int, int, int, int]       # x0, y0, x1, y1 (pixels, end exclusive)
+    coverage: np.ndarray                    # (y1 - y0, x1 - x0) float32 in [0, 1]
+    role_px: dict[str, float]
+    role_radiance: dict[str, float] | None = None
+    sky_radiance: float | None = None
+
+    @property
+    def visible_px(self) -> float:
+        return float(self.coverage.sum())
 
 
 @dataclass
 class FrameBuffers:
     """Raw per-frame outputs (linear, float32) before encoding."""
 
-    rgb_linear: np.ndarray        # (H, W, 3) linear sRGB radiance x exposure
-    thermal_radiance: np.ndarray  # (H, W) W sr^-1 m^-2 at the sensor
-    thermal_kelvin: np.ndarray    # (H, W) radiometric (brightness) temperature
-    mask_rgb: np.ndarray          # (H, W) uint16 target ids, 0 = background
-    mask_thermal: np.ndarray      # (H, W) uint16
+    rgb_linear: np.ndarray | None        # (H, W, 3) linear sRGB radiance x exposure
+    thermal_radiance: np.ndarray | None  # (H, W) W sr^-1 m^-2 at the sensor
+    mask_rgb: np.ndarray | None          # (H, W) uint16 id of the target covering >= half the pixel, 0 = none
+    mask_thermal: np.ndarray | None      # (H, W) uint16
+    coverage: dict[str, list[TargetCoverage]] | None = None  # per camera, one entry per visible target
+
+    @cached_property
+    def thermal_kelvin(self) -> np.ndarray | None:
+        """(H, W) float32 radiometric (brightness) temperature; computed on first use (by the
+        writer threads, off the render loop)."""
+        if self.thermal_radiance is None:
+            return None
+        return thermal.brightness_temperature(self.thermal_radiance).astype(np.float32)
+
+
+@lru_cache(maxsize=2)
+def _env_directions_cached(width: int, height: int, to_world_bytes: bytes) -> np.ndarray:
+    out = _env_directions(width, height, np.frombuffer(to_world_bytes).reshape(3, 3))
+    out.flags.writeable = False
+    return out
+
+
+@lru_cache(maxsize=2)
+def _neg_directions_f32(width: int, height: int, to_world_bytes: bytes) -> np.ndarray:
+    """(3, n) float32 of minus the upper-hemisphere texel directions (the ``wi`` of a sky lookup)."""
+    top = _env_directions_cached(width, height, to_world_bytes)[: height // 2]
+    out = np.ascontiguousarray(-top.reshape(-1, 3).T.astype(np.float32))
+    out.flags.writeable = False
+    return out
 
 
 def _env_directions(width: int, height: int, to_world: np.ndarray) -> np.ndarray:
@@ -66,45 +131,64 @@ class SkyMaps:
 
         scenario = timeline.scenario
         self.to_world = mi.ScalarTransform4f().rotate([1, 0, 0], 90)
-        rot = np.array(self.to_world.matrix)[:3, :3]
-        dirs = _env_directions(ENV_WIDTH, ENV_HEIGHT, rot)
-        flat = dirs.reshape(-1, 3)
+        rot = np.ascontiguousarray(np.array(self.to_world.matrix, dtype=np.float64)[:3, :3])
+        dirs = _env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())  # same for every sequence
+        # rows [0, H/2) are exactly the texels above the horizon: the sky is evaluated there only,
+        # the lower half is the ground (one colour)
+        half = ENV_HEIGHT // 2
+        top = dirs[:half]
+        up = top[..., 2]
         sun_el, sun_az = sun_elevation_azimuth_deg(scenario.sky.sun)
         self.sun_direction = direction_from_elevation_azimuth(sun_el, sun_az)
         sunsky = {"type": "sunsky", "sun_direction": self.sun_direction.tolist(), "turbidity": scenario.sky.turbidity,
                   "albedo": scenario.sky.ground_albedo}
         sky_only = mi.load_dict({**sunsky, "sun_scale": 0.0})
-        si = dr.zeros(mi.SurfaceInteraction3f, flat.shape[0])
-        si.wi = mi.Vector3f(-flat[:, 0], -flat[:, 1], -flat[:, 2])
-        rgb = np.array(sky_only.eval(si)).T.reshape(ENV_HEIGHT, ENV_WIDTH, 3)
-        if sun_el > 0:
-            sun_only = mi.load_dict({**sunsky, "sky_scale": 0.0})
-            si1 = dr.zeros(mi.SurfaceInteraction3f, 1)
-            si1.wi = mi.Vector3f(*[float(c) for c in -self.sun_direction])
-            self.sun_irradiance = np.array(sun_only.eval(si1)).ravel() * SUN_SOLID_ANGLE_SR
-        else:
-            self.sun_irradiance = np.zeros(3)
-        up = dirs[..., 2]
-        texel_solid_angle = (2 * np.pi / ENV_WIDTH) * (np.pi / ENV_HEIGHT) * np.sqrt(np.clip(1 - (dirs[..., 1] * 0) ** 2, 0, 1))
-        texel_solid_angle = texel_solid_angle * np.sin((np.arange(ENV_HEIGHT)[:, None] + 0.5) / ENV_HEIGHT * np.pi)
-        cos_up = np.clip(up, 0, None)
-        sky_irradiance = np.sum(rgb * (cos_up * texel_solid_angle)[..., None], axis=(0, 1))
+        wi = _neg_directions_f32(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())
+        si = dr.zeros(mi.SurfaceInteraction3f, wi.shape[1])
+        si.wi = mi.Vector3f(wi[0], wi[1], wi[2])
+        rgb = np.array(sky_only.eval(si), dtype=np.float32).T.reshape(half, ENV_WIDTH, 3)
+        # both helper emitters are always created (and freed) in the same order, so the scene's
+        # own emitters get the same Dr.Jit registry ids in every sequence and the compiled
+        # kernels are reused instead of rebuilt per sequence
+        sun_only = mi.load_dict({**sunsky, "sky_scale": 0.0})
+        si1 = dr.zeros(mi.SurfaceInteraction3f, 1)
+        si1.wi = mi.Vector3f(*[float(c) for c in -self.sun_direction])
+        sun_value = np.array(sun_only.eval(si1)).ravel() * SUN_SOLID_ANGLE_SR
+        self.sun_irradiance = sun_value if sun_el > 0 else np.zeros(3)
+        del sky_only, sun_only, si, si1
+        # texel solid angle depends on the row only: (2 pi / W)(pi / H) sin(theta_row)
+        row_sa = (2 * np.pi / ENV_WIDTH) * (np.pi / ENV_HEIGHT) * np.sin((np.arange(half) + 0.5) / ENV_HEIGHT * np.pi)
+        weight = (up * row_sa[:, None]).ravel()
+        sky_irradiance = weight @ rgb.reshape(-1, 3).astype(np.float64)
         sun_cos = max(self.sun_direction[2], 0.0)
         ground = scenario.sky.ground_albedo * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi
         clouds = scenario.sky.clouds
         if clouds is not None and clouds.coverage > 0:
-            cover = CloudField(clouds, timeline.seed).coverage(dirs)[..., None]
-            cloud_rgb = 0.75 * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi
-            rgb = (1 - cover) * rgb + cover * cloud_rgb
+            cover = CloudField(clouds, timeline.seed).coverage(top).astype(np.float32)[..., None]
+            cloud_rgb = (0.75 * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi).astype(np.float32)
+            rgb += cover * (cloud_rgb - rgb)  # (1 - cover) rgb + cover cloud_rgb
             self.sun_irradiance = self.sun_irradiance * (1 - 0.8 * clouds.coverage)
-        below = (up <= 0)[..., None]
-        rgb = np.where(below, ground, rgb)
-        self.rgb = rgb.astype(np.float32)
+        full = np.empty((ENV_HEIGHT, ENV_WIDTH, 3), np.float32)
+        full[:half] = rgb
+        full[half:] = ground
+        self.rgb = full
         horizon = (up > 0.01) & (up < 0.06)
-        self.airlight_rgb = rgb[horizon].mean(axis=0) if np.any(horizon) else rgb.reshape(-1, 3).mean(axis=0)
-        self.thermal_sky = ThermalSky(scenario.sky, scenario.atmosphere, timeline.seed)
-        self.thermal = self.thermal_sky.radiance(dirs).astype(np.float32)
-        self.reflected_lwir = self.thermal_sky.reflected_radiance()
+        self.airlight_rgb = rgb[horizon].astype(np.float64).mean(axis=0)
+        self._scenario, self._seed = scenario, timeline.seed
+
+    @cached_property
+    def thermal_sky(self) -> ThermalSky:
+        return ThermalSky(self._scenario.sky, self._scenario.atmosphere, self._seed)
+
+    @cached_property
+    def thermal(self) -> np.ndarray:
+        """LWIR band radiance map (computed only when a thermal camera renders)."""
+        rot = np.ascontiguousarray(np.array(self.to_world.matrix, dtype=np.float64)[:3, :3])
+        return self.thermal_sky.radiance(_env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())).astype(np.float32)
+
+    @cached_property
+    def reflected_lwir(self) -> float:
+        return self.thermal_sky.reflected_radiance()
 
     def rgb_at(self, direction: np.ndarray) -> np.ndarray:
         """Sky colour in a world direction (nearest texel), used for exposure."""
@@ -118,37 +202,277 @@ def _color(mi, values) -> object:
     return mi.Color3f(*[float(v) for v in values])
 
 
-def _object_to_world(track: TargetTrack, frame: int, vertices: np.ndarray) -> np.ndarray:
-    return vertices @ track.rotation[frame].T + track.position_m[frame]
 
+class _View:
+    """One camera's batched Mitsuba scene and our own ray generation.
 
-def _parts_by_role(track: TargetTrack, frame: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Merge an asset's parts per material role (one Mitsuba shape per role and target)."""
-    parts = build_asset(track.kind, track.size_m, flap_phase_rad=float(track.flap_phase_rad[frame]),
-                        rotor_angle_rad=float(track.rotor_angle_rad[frame]))
-    grouped: dict[str, list] = {}
-    for part in parts:
-        grouped.setdefault(part.role, []).append(part)
-    merged = {}
-    for role, group in grouped.items():
-        offset = 0
-        verts, faces = [], []
-        for part in group:
-            verts.append(part.vertices)
-            faces.append(part.faces + offset)
-            offset += len(part.vertices)
-        merged[role] = (_object_to_world(track, frame, np.vstack(verts)), np.vstack(faces).astype(np.uint32))
-    return merged
+    The scene holds ONE mesh: ``batch_frames`` slot copies of every target part, faces ordered by
+    (slot, target, role), with per-face reflectance/emission attributes (a single shape and emitter,
+    so no per-part virtual calls and no light-selection dilution). Rays are generated here, per
+    tile pixel and sample, with a pinhole matching Mitsuba's perspective sensor; the sub-pixel
+    position of sample ``s`` of pixel ``(x, y)`` is a hash of (camera seed, pixel, s) only, so a
+    pixel gets the same primary rays in ROI and full mode, in any batch slot and in every frame.
+    """
+
+    def __init__(self, owner: "SequenceRenderer", which: str, plan: CameraPlan):
+        import drjit as dr
+
+        self.dr = dr
+        # a proxy, not a reference: no renderer <-> view cycle, so a dropped renderer frees its
+        # Mitsuba scenes at once instead of at the next garbage collection
+        self.owner, self.which, self.plan = weakref.proxy(owner), which, plan
+        self.mi = mi = owner.mi
+        self.camera = owner.timeline.cameras[which]
+        rig = owner.rig
+        self.spp = rig.rgb.spp if which == "rgb" else rig.thermal.spp
+        self.jitter_seed = render_seed(owner.timeline.seed, JITTER_FRAME, PASS_INDEX[which])
+        self.keys: list[tuple[int, int, str]] = []  # (slot, target index, role), in face order
+        face_counts, vert_counts = [], []
+        for slot in range(plan.batch_frames):
+            for ti, geo in enumerate(owner.geometry):
+                for role in geo.roles:
+                    self.keys.append((slot, ti, role))
+                    face_counts.append(len(geo.faces(role)))
+                    vert_counts.append(len(geo.world(0)[role]))
+        self.face_counts = np.array(face_counts)
+        self.face_key = np.repeat(np.arange(len(self.keys)), self.face_counts)
+        self._key_slot = np.array([k[0] for k in self.keys])
+        self._key_target = np.array([k[1] for k in self.keys])
+        self._key_role = [k[2] for k in self.keys]
+        faces, offset = [], 0
+        for (slot, ti, role), nv in zip(self.keys, vert_counts):
+            faces.append(owner.geometry[ti].faces(role) + offset)
+            offset += nv
+        self.faces = np.vstack(faces).astype(np.uint32)
+        self.n_vertices = offset
+        self.scene = self._build()
+        self.params = mi.traverse(self.scene)
+        self.environment = self.scene.environment()
+        self.integrator = mi.load_dict({"type": "path", "max_depth": RGB_MAX_DEPTH}) if which == "rgb" else None
+        self._sky_cache: tuple[tuple, np.ndarray] | None = None
+        # a camera that never turns keeps one cached sky (copied per frame before compositing);
+        # a turning camera gets a fresh sky per frame that the composite may overwrite in place
+        self.static = bool(np.all(self.camera.forward == self.camera.forward[0])
+                           and np.all(self.camera.up == self.camera.up[0]))
+
+    # ---- scene construction -------------------------------------------------------------------
+    def _build(self):
+        mi, owner = self.mi, self.owner
+        if self.which == "rgb":
+            scene: dict = {"type": "scene"}
+            env = owner.sky.rgb
+            if np.any(owner.sky.sun_irradiance > 0):
+                scene["sun"] = {"type": "directional", "direction": (-owner.sky.sun_direction).tolist(),
+                                "irradiance": {"type": "rgb", "value": owner.sky.sun_irradiance.tolist()}}
+        else:
+            scene = {"type": "scene"}
+            env = np.repeat(owner.sky.thermal[..., None], 3, axis=-1)
+        scene["sky"] = {"type": "envmap", "bitmap": mi.Bitmap(env), "to_world": owner.sky.to_world}
+        props = mi.Properties()
+        props["bsdf"] = mi.load_dict({"type": "diffuse", "reflectance": {"type": "mesh_attribute", "name": "face_albedo"}})
+        # the airlight/thermal emission is seen directly; it is not a light worth sampling (weight 0)
+        props["emitter"] = mi.load_dict({"type": "area", "sampling_weight": 0.0,
+                                         "radiance": {"type": "mesh_attribute", "name": "face_emission"}})
+        mesh = mi.Mesh("targets", self.n_vertices, len(self.faces), props=props)
+        n_faces = len(self.faces)
+        mesh.add_attribute("face_albedo", 3, [0.5] * (3 * n_faces))
+        mesh.add_attribute("face_emission", 3, [0.0] * (3 * n_faces))
+        params = mi.traverse(mesh)
+        params["vertex_positions"] = mi.Float(self._vertices([0] * self.plan.batch_frames).ravel())
+        params["faces"] = mi.UInt32(self.faces.ravel())
+        params.update()
+        scene["targets"] = mesh
+        return mi.load_dict(scene)
+
+    def _vertices(self, slot_frames: list[int]) -> np.ndarray:
+        """(n_vertices, 3) float32: each slot's frame geometry relative to its camera, at the slot."""
+        cam, plan, owner = self.camera, self.plan, self.owner
+        blocks = []
+        for slot, ti, role in self.keys:
+            frame = slot_frames[slot]
+            rel = owner.geometry[ti].world(frame)[role] - cam.origin_m[frame]
+            blocks.append(rel + plan.slot_offset_m(slot))
+        return np.vstack(blocks).astype(np.float32)
+
+    # ---- per batch ----------------------------------------------------------------------------
+    def place(self, slot_frames: list[int]) -> dict[tuple[int, int], Tile]:
+        """Put frame ``slot_frames[s]`` into slot ``s``: geometry and per-face materials; returns tiles."""
+        mi, plan, cam, owner = self.mi, self.plan, self.camera, self.owner
+        tiles: dict[tuple[int, int], Tile] = {}
+        for slot, frame in enumerate(slot_frames):
+            for ti in range(plan.tiles_per_frame):
+                box = owner.boxes[self.which][frame][ti] if plan.mode == "roi" else None
+                tiles[(slot, ti)] = place_tile(plan, box, cam.width_px, cam.height_px)
+        albedo = np.zeros((len(self.keys), 3), np.float32)
+        emission = np.zeros((len(self.keys), 3), np.float32)
+        for k, (slot, ti, role) in enumerate(self.keys):
+            frame = slot_frames[slot]
+            if self.which == "rgb":
+                albedo[k], emission[k] = owner.rgb_material(ti, role, frame, "rgb")
+            else:
+                emission[k] = owner.thermal_radiance(ti, role, frame, "thermal")
+        self.params["targets.vertex_positions"] = mi.Float(self._vertices(slot_frames).ravel())
+        self.params["targets.face_albedo"] = mi.Float(np.repeat(albedo, self.face_counts, axis=0).ravel())
+        self.params["targets.face_emission"] = mi.Float(np.repeat(emission, self.face_counts, axis=0).ravel())
+        self.params.update()
+        self._slot_frames = list(slot_frames)
+        return tiles
+
+    def _camera_arrays(self, slot_frames: list[int]) -> list:
+        """Per-slot camera origin, forward, right and up as Dr.Jit arrays (for gathers)."""
+        cam, plan, mi = self.camera, self.plan, self.mi
+        rows = []
+        for slot, frame in enumerate(slot_frames):
+            fwd, up = cam.forward[frame], cam.up[frame]
+            rows.append(np.concatenate([plan.slot_offset_m(slot), fwd, np.cross(fwd, up), up]))
+        table = np.asarray(rows + rows[:1], np.float64)  # >= 2 rows: size-1 arrays become kernel literals
+        return [mi.Float(table[:, c].astype(np.float32)) for c in range(12)]
+
+    def _opaque(self, kind, value):
+        """A kernel input that is not baked into the kernel source: values that change between
+        sequences (sizes, seeds, focal length) would otherwise recompile the kernels every time."""
+        return self.dr.opaque(kind, value)
+
+    def _rays(self, slot, px, py, cams):
+        """World rays of slot ``slot`` (UInt32 per lane) through image positions (px, py)."""
+        dr, mi, cam = self.dr, self.mi, self.camera
+        g = [dr.gather(mi.Float, c, slot) for c in cams]
+        o = mi.Point3f(g[0], g[1], g[2])
+        fwd, right, up = mi.Vector3f(g[3], g[4], g[5]), mi.Vector3f(g[6], g[7], g[8]), mi.Vector3f(g[9], g[10], g[11])
+        f = self._opaque(mi.Float, cam.focal_px)
+        cx, cy = self._opaque(mi.Float, cam.width_px / 2), self._opaque(mi.Float, cam.height_px / 2)
+        d = fwd * f + right * (px - cx) - up * (py - cy)
+        ray = mi.Ray3f(o, dr.normalize(d))
+        ray.maxt = self._opaque(mi.Float, self.plan.far_clip_m)
+        return ray
+
+    def _jitter(self, x, y, s):
+        """Sub-pixel sample position in [0, 1)^2: a hash of (camera seed, pixel, sample) only."""
+        mi = self.mi
+        pid = y * self._opaque(mi.UInt32, self.camera.width_px) + x
+        key = self._opaque(mi.UInt32, self.jitter_seed) + s * 2
+        return mi.sample_tea_float32(pid, key), mi.sample_tea_float32(pid, key + 1)
+
+    def _tile_lanes(self, tiles: dict, n_tiles: int):
+        """Lane -> (tile, image x, image y, sample) for every sample of every tile."""
+        dr, mi, plan = self.dr, self.mi, self.plan
+        n = n_tiles * plan.tile_height * plan.tile_width * self.spp
+        tw, th = self._opaque(mi.UInt32, plan.tile_width), self._opaque(mi.UInt32, plan.tile_height)
+        spp = self._opaque(mi.UInt32, self.spp)
+        idx = dr.arange(mi.UInt32, n)
+        s = idx % spp
+        pix = idx // spp
+        u, v, t = pix % tw, (pix // tw) % th, pix // (tw * th)
+        order = sorted(tiles)
+        order = order + order[:1]  # >= 2 entries (size-1 arrays become literals)
+        x0 = mi.UInt32(np.array([tiles[k].x0 for k in order], np.uint32))
+        y0 = mi.UInt32(np.array([tiles[k].y0 for k in order], np.uint32))
+        x = dr.gather(mi.UInt32, x0, t) + u
+        y = dr.gather(mi.UInt32, y0, t) + v
+        slot = t // self._opaque(mi.UInt32, plan.tiles_per_frame)
+        return slot, x, y, s
+
+    def render_tiles(self, seed: int, tiles: dict) -> np.ndarray:
+        """(tiles_per_batch, tile_h, tile_w, 3) radiance of the placed batch."""
+        dr, mi, plan = self.dr, self.mi, self.plan
+        n_tiles = plan.tiles_per_batch
+        slot, x, y, s = self._tile_lanes(tiles, n_tiles)
+        jx, jy = self._jitter(x, y, s)
+        ray = self._rays(slot, mi.Float(x) + jx, mi.Float(y) + jy, self._camera_arrays(self._slot_frames))
+        if self.integrator is not None:
+            sampler = mi.load_dict({"type": "independent"})
+            sampler.seed(seed, dr.width(ray.o))
+            value = self.integrator.sample(self.scene, sampler, ray)[0]
+        else:
+            si = self.scene.ray_intersect(ray)
+            value = si.emitter(self.scene).eval(si)
+        img = np.array(dr.block_sum(value, self.spp) / self.spp, dtype=np.float32).T
+        return img.reshape(n_tiles, plan.tile_height, plan.tile_width, 3)
+
+    def sky(self, frame: int, region: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """(H, W, 3) sky radiance at pixel centres (ROI mode's background; the sky behind a target
+        for label contrast), cached while the camera does not turn. Pixels smaller than a sky
+        texel make this the pixel's mean to well below the 8-bit step (tested against a full render).
+        Only a static camera's sky is cached (a turning camera's is composited over in place)."""
+        dr, mi, cam = self.dr, self.mi, self.camera
+        pose = (cam.forward[frame].tobytes(), cam.up[frame].tobytes())
+        if self._sky_cache is not None and self._sky_cache[0] == pose:
+            whole = self._sky_cache[1]
+            return whole if region is None else whole[region[1]:region[3], region[0]:region[2]]
+        if region is not None and self.plan.mode == "roi" and self.static:
+            return self.sky(frame)[region[1]:region[3], region[0]:region[2]]
+        x0, y0, x1, y1 = region if region is not None else (0, 0, cam.width_px, cam.height_px)
+        h, w = y1 - y0, x1 - x0
+        idx = dr.arange(mi.UInt32, h * w)
+        wo = self._opaque(mi.UInt32, w)
+        x = mi.Float(idx % wo + self._opaque(mi.UInt32, x0)) + 0.5
+        y = mi.Float(idx // wo + self._opaque(mi.UInt32, y0)) + 0.5
+        # camera vectors go in as arrays (Python floats would become kernel literals and recompile
+        # the kernel for every camera pose)
+        ray = self._rays(dr.zeros(mi.UInt32, h * w), x, y, self._camera_arrays([frame]))
+        si = dr.zeros(mi.SurfaceInteraction3f, h * w)
+        si.wi = -ray.d
+        image = np.array(self.environment.eval(si), dtype=np.float32).T.reshape(h, w, 3)
+        if region is None and self.static:
+            self._sky_cache = (pose, image)
+        return image
+
+    def coverage(self, slot_frames: list[int], tiles: dict[tuple[int, int], Tile], wanted: set[int]) -> dict:
+        """Coverage rays (regular k x k grid per pixel) over each target's projected box in each
+        wanted slot: {(slot, target): (region, (h, w, n_keys) hit counts)}."""
+        mi, cam = self.mi, self.camera
+        k = COVERAGE_SUBSAMPLES
+        sub = (np.arange(k) + 0.5) / k
+        xs_all, ys_all, slots_all, regions = [], [], [], []
+        for slot, frame in enumerate(slot_frames):
+            if slot not in wanted:
+                continue
+            for ti in range(len(self.owner.geometry)):
+                box = self.owner.boxes[self.which][frame][ti]
+                if box is None:
+                    continue
+                region = pixel_box(box, cam.width_px, cam.height_px, pad_px=1)
+                x0, y0, x1, y1 = region
+                px = np.arange(x0, x1)[None, :, None, None] + sub[None, None, None, :]
+                py = np.arange(y0, y1)[:, None, None, None] + sub[None, None, :, None]
+                px, py = np.broadcast_arrays(px, py)
+                xs_all.append(px.ravel())
+                ys_all.append(py.ravel())
+                slots_all.append(np.full(px.size, slot, np.uint32))
+                regions.append(((slot, ti), region))
+        if not regions:
+            return {}
+        ray = self._rays(mi.UInt32(np.concatenate(slots_all)), mi.Float(np.concatenate(xs_all).astype(np.float32)),
+                         mi.Float(np.concatenate(ys_all).astype(np.float32)), self._camera_arrays(slot_frames))
+        si = self.scene.ray_intersect(ray)
+        prim = np.array(si.prim_index, dtype=np.int64)
+        valid = np.array(si.is_valid(), dtype=bool)
+        n_keys = len(self.keys)
+        key = np.where(valid, self.face_key[np.clip(prim, 0, len(self.face_key) - 1)], n_keys)
+        out, start = {}, 0
+        for slot_ti, region in regions:
+            x0, y0, x1, y1 = region
+            n = (x1 - x0) * (y1 - y0) * k * k
+            hits = key[start:start + n].reshape(-1, k * k)
+            start += n
+            counts = np.zeros((hits.shape[0], n_keys + 1), np.int32)
+            np.add.at(counts, (np.repeat(np.arange(hits.shape[0]), k * k), hits.ravel()), 1)
+            out[slot_ti] = (region, counts[:, :n_keys].reshape(y1 - y0, x1 - x0, n_keys))
+        return out
 
 
 class SequenceRenderer:
-    """Renders every frame of a Timeline; geometry and shape set stay fixed, so Dr.Jit compiles once."""
+    """Renders every frame of a Timeline in batched launches; geometry and shape set stay fixed, so
+    Dr.Jit compiles once per camera. ``cameras`` limits the work (e.g. RGB only for small video);
+    ``labels=False`` skips the coverage rays (no masks)."""
 
-    def __init__(self, timeline: Timeline):
+    def __init__(self, timeline: Timeline, cameras: tuple[str, ...] = ("rgb", "thermal"), labels: bool = True,
+                 batch_frames: int = BATCH_FRAMES, roi: bool = True):
         from simulator.render.mitsuba_setup import load_mitsuba
 
         self.mi = mi = load_mitsuba()
         self.timeline = timeline
+        self.labels = labels
         scenario = timeline.scenario
         self.sky = SkyMaps(mi, timeline)
         atm = scenario.atmosphere
@@ -156,109 +480,168 @@ class SequenceRenderer:
         self.air_radiance = float(thermal.band_radiance(atm.air_temperature_k))
         self.rig = scenario.camera_rig
         self._targets = {t.name: t for t in scenario.targets}
-        first = {track.target_id: _parts_by_role(track, 0) for track in timeline.targets}
-        self._shape_keys: list[tuple[str, int, str]] = []  # (key, target_id, role)
-        for track in timeline.targets:
-            for role in first[track.target_id]:
-                self._shape_keys.append((f"t{track.target_id}_{role}", track.target_id, role))
-        self.rgb_scene = self._build_scene("rgb", first)
-        self.thermal_scene = self._build_scene("thermal", first)
-        self.rgb_params = mi.traverse(self.rgb_scene)
-        self.thermal_params = mi.traverse(self.thermal_scene)
-        self._mask_integrator = mi.load_dict({"type": "path", "max_depth": 1})
+        self.geometry = [TrackGeometry(track) for track in timeline.targets]
+        n = timeline.n_frames
+        self.boxes: dict[str, list[list[tuple | None]]] = {}
+        self.plans: dict[str, CameraPlan] = {}
+        for which in cameras:
+            cam = timeline.cameras[which]
+            frames_boxes, max_range = [], 1.0
+            for i in range(n):
+                row = []
+                for geo in self.geometry:
+                    verts = geo.all_vertices(i)
+                    px, depth = cam.project(i, verts)
+                    row.append(projected_boxes(px, depth, cam.width_px, cam.height_px))
+                    max_range = max(max_range, float(np.linalg.norm(verts - cam.origin_m[i], axis=1).max()))
+                frames_boxes.append(row)
+            self.boxes[which] = frames_boxes
+            self.plans[which] = plan_camera(frames_boxes, cam.width_px, cam.height_px, max_range,
+                                            batch_frames=batch_frames, roi=roi)
+        if len(cameras) == 2 and self.plans["rgb"].batch_frames != self.plans["thermal"].batch_frames:
+            b = min(p.batch_frames for p in self.plans.values())
+            self.plans = {w: CameraPlan(**{**p.__dict__, "batch_frames": b}) for w, p in self.plans.items()}
+        self.batch_frames = min(p.batch_frames for p in self.plans.values())
+        self.views = {which: _View(self, which, self.plans[which]) for which in cameras}
         look = timeline.cameras["rgb"].forward[0]
         luminance = float(np.dot(self.sky.rgb_at(look), [0.2126, 0.7152, 0.0722]))
         self.exposure = EXPOSURE_KEY / max(luminance, 1e-6)
+        self._cached: dict[int, FrameBuffers] = {}
 
-    def _sensor(self, camera: CameraTrack, spp: int) -> dict:
-        mi = self.mi
-        return {
-            "type": "perspective", "fov": camera.hfov_deg, "fov_axis": "x",
-            "near_clip": 0.1, "far_clip": 1e6,
-            "to_world": mi.ScalarTransform4f().look_at(origin=camera.origin_m[0].tolist(),
-                                                      target=(camera.origin_m[0] + camera.forward[0]).tolist(),
-                                                      up=camera.up[0].tolist()),
-            "film": {"type": "hdrfilm", "width": camera.width_px, "height": camera.height_px,
-                     "rfilter": {"type": "box"}, "pixel_format": "rgb"},
-            "sampler": {"type": "independent", "sample_count": spp},
-        }
+    # ---- materials (shared with labels) --------------------------------------------------------
+    def _range_m(self, ti: int, frame: int, which: str) -> float:
+        track = self.timeline.targets[ti]
+        return float(np.linalg.norm(track.position_m[frame] - self.timeline.cameras[which].origin_m[frame]))
 
-    def _build_scene(self, which: str, first: dict):
-        mi = self.mi
-        camera = self.timeline.cameras[which]
-        if which == "rgb":
-            env_bitmap = mi.Bitmap(self.sky.rgb)
-            scene: dict = {"type": "scene", "integrator": {"type": "path", "max_depth": RGB_MAX_DEPTH},
-                           "sensor": self._sensor(camera, self.rig.rgb.spp)}
-            if np.any(self.sky.sun_irradiance > 0):
-                scene["sun"] = {"type": "directional", "direction": (-self.sky.sun_direction).tolist(),
-                                "irradiance": {"type": "rgb", "value": self.sky.sun_irradiance.tolist()}}
+    def rgb_material(self, ti: int, role: str, frame: int, which: str) -> tuple[np.ndarray, np.ndarray]:
+        """(reflectance, airlight emission) of a part: L = t L_obj + (1 - t) A."""
+        track = self.timeline.targets[ti]
+        material = material_for(self._targets[track.name], role)
+        t = float(np.exp(-self.beta_visible * self._range_m(ti, frame, which)))
+        return t * np.asarray(material.rgb_reflectance), (1 - t) * self.sky.airlight_rgb
+
+    def thermal_radiance(self, ti: int, role: str, frame: int, which: str) -> float:
+        """At-sensor LWIR band radiance of a part: tau (eps L(T) + (1 - eps) L_refl) + L_path."""
+        track = self.timeline.targets[ti]
+        material = material_for(self._targets[track.name], role)
+        temp_k = float(track.part_temperature_k[role][frame])
+        surface = thermal.surface_radiance(temp_k, material.emissivity, self.sky.reflected_lwir)
+        sight = track.position_m[frame] - self.timeline.cameras[which].origin_m[frame]
+        tau, path_radiance = self.sky.thermal_sky.lwir.along(sight)  # LOWTRAN7 tables (physics.atmosphere)
+        return float(tau * surface + path_radiance)
+
+    def record(self) -> dict:
+        """The launch layout per camera (recorded in the metadata: it shapes the sample pattern)."""
+        return {which: plan.record() for which, plan in self.plans.items()}
+
+    # ---- rendering -----------------------------------------------------------------------------
+    @property
+    def n_batches(self) -> int:
+        return -(-self.timeline.n_frames // self.batch_frames)
+
+    def batch_frames_of(self, batch: int) -> list[int]:
+        b = self.batch_frames
+        return list(range(batch * b, min((batch + 1) * b, self.timeline.n_frames)))
+
+    def render_batch(self, batch: int, only: list[int] | None = None) -> dict[int, FrameBuffers]:
+        """Render the frames of launch ``batch`` (or only some of them: the others' slots get a copy
+        of the first wanted frame; a frame's pixels do not depend on what the other slots hold)."""
+        frames = self.batch_frames_of(batch)
+        wanted = [f for f in frames if only is None or f in only]
+        b = self.batch_frames
+        slot_frames = [(batch * b + s) if (batch * b + s) in wanted else wanted[0] for s in range(b)]
+        out: dict[int, dict] = {f: {} for f in wanted}
+        for which, view in self.views.items():
+            tiles = view.place(slot_frames)
+            radiance = view.render_tiles(render_seed(self.timeline.seed, batch, PASS_INDEX[which]), tiles)
+            slots = {f - batch * b for f in wanted}
+            cover = view.coverage(slot_frames, tiles, slots) if self.labels else {}
+            for frame in wanted:
+                out[frame][which] = self._assemble(view, frame, frame - batch * b, tiles, radiance, cover)
+        return {f: self._buffers(parts) for f, parts in out.items()}
+
+    def _assemble(self, view: _View, frame: int, slot: int, tiles, radiance, cover) -> tuple:
+        plan, cam = view.plan, view.camera
+        h, w = cam.height_px, cam.width_px
+        if plan.mode == "full":
+            image = radiance[slot][: h, : w].copy()
         else:
-            env_bitmap = mi.Bitmap(np.repeat(self.sky.thermal[..., None], 3, axis=-1))
-            scene = {"type": "scene", "integrator": {"type": "path", "max_depth": 1},
-                     "sensor": self._sensor(camera, self.rig.thermal.spp)}
-        scene["sky"] = {"type": "envmap", "bitmap": env_bitmap, "to_world": self.sky.to_world}
-        for key, tid, role in self._shape_keys:
-            verts, faces = first[tid][role]
-            props = mi.Properties()
-            props["bsdf"] = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}})
-            props["emitter"] = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}})
-            mesh = mi.Mesh(key, len(verts), len(faces), props=props)
-            params = mi.traverse(mesh)
-            params["vertex_positions"] = mi.Float(verts.astype(np.float32).ravel())
-            params["faces"] = mi.UInt32(faces.ravel())
-            params.update()
-            scene[key] = mesh
-        return mi.load_dict(scene)
+            sky = view.sky(frame)
+            image = sky.copy() if view.static else sky  # a turning camera's sky is not reused
+            for ti in range(plan.tiles_per_frame):
+                if self.boxes[view.which][frame][ti] is None:
+                    continue
+                tile = tiles[(slot, ti)]
+                image[tile.y0:tile.y0 + tile.height, tile.x0:tile.x0 + tile.width] = radiance[slot * plan.tiles_per_frame + ti]
+        coverage, mask = None, None
+        if self.labels:
+            coverage, mask = self._coverage_records(view, frame, slot, cover)
+        return image, coverage, mask
 
-    def _update(self, frame: int) -> None:
-        mi = self.mi
-        tracks = {t.target_id: t for t in self.timeline.targets}
-        geometry = {tid: _parts_by_role(track, frame) for tid, track in tracks.items()}
-        for which, params in (("rgb", self.rgb_params), ("thermal", self.thermal_params)):
-            camera = self.timeline.cameras[which]
-            params["sky.scale"] = 1.0
-            params["sensor.to_world"] = mi.ScalarTransform4f().look_at(
-                origin=camera.origin_m[frame].tolist(), target=(camera.origin_m[frame] + camera.forward[frame]).tolist(),
-                up=camera.up[frame].tolist())
-            paths = {}
-            for tid, track in tracks.items():  # LWIR path per target (LOWTRAN7 tables, simulator.physics.atmosphere)
-                sight = track.position_m[frame] - camera.origin_m[frame]
-                paths[tid] = (float(np.linalg.norm(sight)), *self.sky.thermal_sky.lwir.along(sight))
-            for key, tid, role in self._shape_keys:
-                track = tracks[tid]
-                verts, _ = geometry[tid][role]
-                params[f"{key}.vertex_positions"] = mi.Float(verts.astype(np.float32).ravel())
-                range_m, tau, path_radiance = paths[tid]
-                material = material_for(self._targets[track.name], role)
-                if which == "rgb":
-                    t = float(np.exp(-self.beta_visible * range_m))
-                    params[f"{key}.bsdf.reflectance.value"] = _color(mi, t * np.asarray(material.rgb_reflectance))
-                    params[f"{key}.emitter.radiance.value"] = _color(mi, (1 - t) * self.sky.airlight_rgb)
-                else:
-                    temp_k = float(track.part_temperature_k[role][frame])
-                    surface = thermal.surface_radiance(temp_k, material.emissivity, self.sky.reflected_lwir)
-                    value = float(tau * surface + path_radiance)
-                    params[f"{key}.emitter.radiance.value"] = mi.Color3f(value, value, value)
-                    params[f"{key}.bsdf.reflectance.value"] = mi.Color3f(0.0, 0.0, 0.0)
-            params.update()
+    def _coverage_records(self, view: _View, frame: int, slot: int, cover: dict) -> tuple[list, np.ndarray]:
+        cam = view.camera
+        k2 = COVERAGE_SUBSAMPLES ** 2
+        mask = np.zeros((cam.height_px, cam.width_px), np.uint16)
+        best = np.zeros((cam.height_px, cam.width_px), np.float32)
+        records = []
+        key_target, key_role, key_slot = view._key_target, view._key_role, view._key_slot
+        for ti, track in enumerate(self.timeline.targets):
+            entry = cover.get((slot, ti))
+            if entry is None:
+                continue
+            region, counts = entry
+            own = (key_target == ti) & (key_slot == slot)
+            cov = counts[..., own].sum(axis=-1).astype(np.float32) / k2
+            if not cov.any():
+                continue
+            roles = [key_role[i] for i in np.flatnonzero(own)]
+            role_px = {}
+            for i, role in zip(np.flatnonzero(own), roles):
+                role_px[role] = role_px.get(role, 0.0) + float(counts[..., i].sum()) / k2
+            record = TargetCoverage(track.target_id, region, cov, role_px)
+            if view.which == "thermal":
+                record.role_radiance = {r: self.thermal_radiance(ti, r, frame, "thermal") for r in role_px}
+                x0, y0, x1, y1 = region
+                sky = view.sky(frame, region)[..., 0]
+                record.sky_radiance = float(np.sum(sky * cov) / cov.sum())
+            records.append(record)
+            x0, y0, x1, y1 = region
+            win_best, win_mask = best[y0:y1, x0:x1], mask[y0:y1, x0:x1]
+            take = (cov >= 0.5) & (cov > win_best)
+            win_mask[take] = track.target_id
+            win_best[take] = cov[take]
+        return records, mask
+
+    def _buffers(self, parts: dict) -> FrameBuffers:
+        rgb = th = mask_rgb = mask_th = None
+        coverage = {}
+        if "rgb" in parts:
+            image, coverage["rgb"], mask_rgb = parts["rgb"]
+            rgb = image * np.float32(self.exposure)
+        if "thermal" in parts:
+            image, coverage["thermal"], mask_th = parts["thermal"]
+            th = np.ascontiguousarray(image[..., 0])
+        return FrameBuffers(rgb_linear=rgb, thermal_radiance=th, mask_rgb=mask_rgb,
+                            mask_thermal=mask_th, coverage=coverage if self.labels else None)
+
+    def iter_frames(self):
+        """(frame index, FrameBuffers) for every frame in order, one launch per batch."""
+        for batch in range(self.n_batches):
+            rendered = self.render_batch(batch)
+            for frame in sorted(rendered):
+                yield frame, rendered[frame]
+
+    def close(self) -> None:
+        """Free the Mitsuba scenes now (views point back at the renderer, a cycle Python would
+        only collect later, so each sequence kept ~250 MB alive) and return Dr.Jit's cached memory."""
+        import drjit as dr
+
+        self.views.clear()
+        self._cached = {}
+        dr.flush_malloc_cache()
 
     def render_frame(self, frame: int) -> FrameBuffers:
-        mi = self.mi
-        self._update(frame)
-        seed = self.timeline.seed
-        rgb = np.array(mi.render(self.rgb_scene, seed=render_seed(seed, frame, 0)), dtype=np.float32)
-        th = np.array(mi.render(self.thermal_scene, seed=render_seed(seed, frame, 1)), dtype=np.float32)[..., 0]
-        masks = {}
-        for idx, (which, scene, params) in enumerate((("rgb", self.rgb_scene, self.rgb_params),
-                                                      ("thermal", self.thermal_scene, self.thermal_params))):
-            params["sky.scale"] = 0.0
-            for key, tid, _ in self._shape_keys:
-                params[f"{key}.emitter.radiance.value"] = mi.Color3f(float(tid), float(tid), float(tid))
-            params.update()
-            ids = np.array(mi.render(scene, integrator=self._mask_integrator, spp=1,
-                                     seed=render_seed(seed, frame, 2 + idx)))[..., 0]
-            masks[which] = np.rint(ids).astype(np.uint16)
-        kelvin = thermal.brightness_temperature(th).astype(np.float32)
-        return FrameBuffers(rgb_linear=rgb * np.float32(self.exposure), thermal_radiance=th, thermal_kelvin=kelvin,
-                            mask_rgb=masks["rgb"], mask_thermal=masks["thermal"])
+        """One frame (renders and caches its whole batch; identical to rendering it alone)."""
+        if frame not in self._cached:
+            self._cached = self.render_batch(frame // self.batch_frames)
+        return self._cached[frame]

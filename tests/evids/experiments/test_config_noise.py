@@ -31,7 +31,9 @@ def test_example_config_validates_and_bad_generation_config_is_named():
 
 def test_demo_configs_validate():
     assert load_experiment_config(DEMO_CONFIG).protocol.noise_seeds == [42, 123, 456]
-    assert load_experiment_config(QUICK_CONFIG).dataset.clip_duration_s == 1.0
+    q = load_experiment_config(QUICK_CONFIG)
+    assert q.dataset.generate == "trident_scenes_quick" and len(q.models.seeds) >= 2
+    assert len(load_experiment_config(DEMO_CONFIG).models.seeds) >= 3
 
 
 @pytest.mark.parametrize("patch,needle", [
@@ -106,7 +108,7 @@ def test_conflict_program_flags_only_its_modality_inside_the_window(program, str
 
 
 def test_split_is_stratified_seeded_and_disjoint():
-    clips = [_clip(label=i % 2, s=1, seed=i) for i in range(10)]
+    clips = [_clip(label=i % 2, s=1, seed=i) for i in range(10)]      # no scene recorded: each clip its own
     s1 = split_clips(clips, SplitConfig(seed=42, val_fraction=0.2, test_fraction=0.3))
     s2 = split_clips(clips, SplitConfig(seed=42, val_fraction=0.2, test_fraction=0.3))
     assert s1 == s2
@@ -114,5 +116,5 @@ def test_split_is_stratified_seeded_and_disjoint():
     assert sorted(allidx) == list(range(10))
     for part in s1.values():
         assert {clips[i].label for i in part} == {0, 1}
-    with pytest.raises(UserInputError, match="empty"):
+    with pytest.raises(UserInputError, match="split.unit"):
         split_clips(clips[:2], SplitConfig())

@@ -10,7 +10,7 @@ from scenes.schema import Hover
 from simulator.dataset.sequence import render_sequence
 from simulator.formats.antiuav import read_antiuav_labels
 from simulator.physics.timeline import build_timeline
-from simulator.render.labels import frame_labels, tight_box
+from simulator.render.labels import coverage_labels, tight_box
 from simulator.render.renderer import SequenceRenderer
 from tests.conftest import shrink
 
@@ -21,11 +21,16 @@ def _render_frames(scenario, seed, frames, n_frames=None):
     return timeline, {i: renderer.render_frame(i) for i in frames}
 
 
+def _labels(timeline, frame, camera, fb, netd_k=None):
+    cam = timeline.cameras[camera]
+    return coverage_labels(timeline, frame, camera, fb.coverage[camera], cam.width_px, cam.height_px, netd_k)
+
+
 def test_hot_drone_is_brighter_than_sky_in_thermal():
     scenario = shrink(load_scenario("clear_day_quad"), 256, 208)
     timeline, out = _render_frames(scenario, 7, [0])
     fb = out[0]
-    labels = frame_labels(timeline, 0, "thermal", fb.mask_thermal, fb.thermal_kelvin, 0.05)
+    labels = _labels(timeline, 0, "thermal", fb, 0.05)
     assert labels[0]["exist"] == 1
     assert labels[0]["contrast_k"] > 1.0
     target = fb.thermal_kelvin[fb.mask_thermal == 1]
@@ -37,8 +42,7 @@ def test_dusk_crossover_contrast_passes_below_netd():
     netd = scenario.camera_rig.thermal.netd_k
     crossing = int(round(0.6 * (scenario.n_frames - 1)))
     timeline, out = _render_frames(scenario, 11, [0, crossing, scenario.n_frames - 1])
-    contrast = {i: frame_labels(timeline, i, "thermal", fb.mask_thermal, fb.thermal_kelvin, netd)[0]
-                for i, fb in out.items()}
+    contrast = {i: _labels(timeline, i, "thermal", fb, netd)[0] for i, fb in out.items()}
     assert contrast[0]["contrast_k"] > 0.5
     assert abs(contrast[crossing]["contrast_k"]) < netd
     assert contrast[crossing]["crossover"] is True
@@ -53,17 +57,26 @@ def test_box_is_the_tight_box_of_the_mask():
     assert tight_box(np.zeros((4, 4), bool)) is None
 
 
-def test_rendered_box_matches_mask_and_projection():
+def test_rendered_box_matches_coverage_mask_and_projection():
     scenario = shrink(load_scenario("swarm_3"), 320, 256)
     timeline, out = _render_frames(scenario, 17, [0])
     fb = out[0]
     cam = timeline.cameras["rgb"]
-    for rec in frame_labels(timeline, 0, "rgb", fb.mask_rgb):
-        ys, xs = np.nonzero(fb.mask_rgb == rec["id"])
-        assert rec["box"] == [xs.min(), ys.min(), xs.max() - xs.min() + 1, ys.max() - ys.min() + 1]
+    coverage = {c.target_id: c for c in fb.coverage["rgb"]}
+    for rec in _labels(timeline, 0, "rgb", fb):
+        cov = coverage[rec["id"]]
+        ys, xs = np.nonzero(cov.coverage > 0)
+        x0, y0 = cov.region[:2]
+        assert rec["box"] == [x0 + xs.min(), y0 + ys.min(), xs.max() - xs.min() + 1, ys.max() - ys.min() + 1]
+        assert rec["visible_px"] == round(float(cov.coverage.sum()), 4) > 0
+        # the written mask (pixels at least half covered) lies inside the box
+        my, mx = np.nonzero(fb.mask_rgb == rec["id"])
+        x, y, w, h = rec["box"]
+        assert np.all((mx >= x) & (mx < x + w) & (my >= y) & (my < y + h))
         track = timeline.targets[rec["id"] - 1]
         projected, _ = cam.project(0, track.position_m[0])
-        centre = np.array([xs.mean() + 0.5, ys.mean() + 0.5])
+        weights = cov.coverage[ys, xs]
+        centre = np.array([np.average(xs + x0 + 0.5, weights=weights), np.average(ys + y0 + 0.5, weights=weights)])
         assert np.linalg.norm(centre - projected[0]) < 2.0  # mirrored axes would put it far away
 
 
@@ -74,7 +87,7 @@ def test_out_of_view_has_absent_frames_with_empty_boxes():
     exist = []
     for i in range(0, timeline.n_frames, 3):
         fb = renderer.render_frame(i)
-        rec = frame_labels(timeline, i, "rgb", fb.mask_rgb)[0]
+        rec = _labels(timeline, i, "rgb", fb)[0]
         exist.append(rec["exist"])
         if not rec["exist"]:
             assert rec["box"] == [] and rec["visible_px"] == 0

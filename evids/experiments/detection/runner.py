@@ -1,0 +1,931 @@
+"""The detection experiment: ``train`` (data + five detectors), ``evaluate`` (conditions (a)-(h),
+thresholds fitted on val only, tracking, metrics through pycocotools / TrackEval / the Anti-UAV
+formula on exported files, uncertainty analyses, gating time) and the headline answers.
+
+Run folder: ``config.json`` (resolved config, every seed and hyper-parameter), ``data.json`` (the
+datasets, their manifests' ids and the load-time degradations), ``models/*.pt`` + ``train.json``,
+``fitted.json`` (every threshold and where it was fitted), ``exports/`` (COCO/MOT/Anti-UAV ground
+truth and our result files), ``metrics.json``, ``tables/*.csv``, ``run.json`` (stage times).
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import torch
+
+from evids.experiments.detection.conditions import (
+    StreamMaps,
+    frame_vacuity,
+    fused_matched,
+    fused_registered,
+    gate_mask,
+    run_model,
+    single_stream,
+)
+from evids.experiments.detection.config import CONDITIONS, DetectionConfig, load_detection_config
+from evids.experiments.detection.data import SequenceData, crop_resize, dataset_entries, inputs, load_sequence
+from evids.experiments.detection.tracking import FrameDetections, run_tracker, tracking_on_absence
+from evids.experiments.detection.train import MODEL_IDS, build_model, train_model
+from evids.runfolder import mark_stage, write_csv, write_json
+from scenes.errors import UserInputError
+
+Log = Callable[[str], None]
+
+STREAM_KEYS = {
+    "a_sigmoid": ("rgb", "thermal"), "b_evidential": ("rgb", "thermal"), "c_evidential_tau": ("rgb", "thermal"),
+    "d_average": ("fused",), "e_ds": ("fused",), "f_ds_gated": ("fused",), "g_feature_fusion": ("fused",),
+    "h_feature_fusion_ts": ("fused",),
+}
+MATCH_PX = 24.0
+
+
+def models_needed(conditions: list[str]) -> list[str]:
+    need = set()
+    for c in conditions:
+        if c == "a_sigmoid":
+            need |= {"rgb_sigmoid", "thermal_sigmoid"}
+        elif c in ("g_feature_fusion", "h_feature_fusion_ts"):
+            need.add("fusion_sigmoid")
+        else:
+            need |= {"rgb_evidential", "thermal_evidential"}
+    return [m for m in MODEL_IDS if m in need]
+
+
+# ------------------------------------------------------------------------------------------ data
+def _data_root(cfg: DetectionConfig, run_dir: Path) -> Path:
+    root = Path(cfg.data.root)
+    return root if root.is_absolute() else run_dir.resolve().parent / root
+
+
+def _check_source(src, field: str) -> None:
+    if src.path is not None:
+        return
+    from simulator.dataset.config import load_generation_config
+
+    try:
+        load_generation_config(src.generate)
+    except UserInputError as exc:
+        raise UserInputError(f"{field}.generate: {exc}") from None
+
+
+def check_inputs(cfg: DetectionConfig) -> None:
+    """Everything that can be checked before anything is written (bad input -> UserInputError)."""
+    _check_source(cfg.data.train, "data.train")
+    if cfg.data.train.path is not None:
+        dataset_entries(Path(cfg.data.train.path), ("train", "val"), "data.train.path")
+    for name, src in cfg.data.test.items():
+        _check_source(src, f"data.test.{name}")
+        if src.path is not None:
+            dataset_entries(Path(src.path), ("test",), f"data.test.{name}.path")
+    if cfg.crossover_set not in cfg.data.test:
+        raise UserInputError(f"crossover_set: {cfg.crossover_set!r} is not one of data.test ({', '.join(cfg.data.test)})")
+
+
+def _resolve(src, field: str, folder: Path, need: tuple[str, ...], log: Log) -> Path:
+    if src.path is not None:
+        return Path(src.path)
+    from simulator.dataset.generate import generate_dataset
+
+    stem = f"{Path(src.generate).stem}_s{src.seed}" + (f"_n{src.sequences}" if src.sequences else "") + (
+        f"_f{src.frames}" if src.frames else "")
+    out = folder / stem
+    log(f"data: {field} <- evids generate {src.generate} (cached in {out})")
+    generate_dataset(src.generate, out, src.seed, sequences=src.sequences, frames=src.frames, progress=False)
+    dataset_entries(out, need, field)
+    return out
+
+
+def resolve_data(cfg: DetectionConfig, run_dir: Path, log: Log, tests: bool) -> dict[str, Any]:
+    """Generate (cached) or locate the training dataset, and with ``tests`` the test datasets."""
+    folder = _data_root(cfg, run_dir)
+    train = _resolve(cfg.data.train, "data.train", folder, ("train", "val"), log)
+    out: dict[str, Any] = {"train": str(train), "datasets": {"train": _identity(train)}}
+    if tests:
+        found = {name: _resolve(src, f"data.test.{name}", folder, ("test",), log) for name, src in cfg.data.test.items()}
+        out["test"] = {n: str(t) for n, t in found.items()}
+        out["datasets"].update({f"test.{n}": _identity(t) for n, t in found.items()})
+    return out
+
+
+def _identity(path: Path) -> dict[str, Any]:
+    return {"path": str(path), "dataset_id": json.loads((Path(path) / "manifest.json").read_text()).get("dataset_id")}
+
+
+def load_split(data: dict[str, Any], cfg: DetectionConfig, which: str) -> list[SequenceData]:
+    """``which``: 'train', 'val' (from the training dataset) or 'test' (every test set)."""
+    out = []
+    if which in ("train", "val"):
+        entries = [e for e in dataset_entries(Path(data["train"]), ("train", "val"), "data.train") if e["split"] == which]
+        out += [load_sequence(e, which, cfg, cfg.train.seed, 0) for e in entries]
+    else:
+        for k, (name, path) in enumerate(sorted(data["test"].items())):
+            entries = [e for e in dataset_entries(Path(path), ("test",), f"data.test.{name}") if e["split"] == "test"]
+            out += [load_sequence(e, name, cfg, cfg.train.seed, k + 1) for e in entries]
+    return out
+
+
+# ----------------------------------------------------------------------------------------- train
+def train(config_source: str | Path | dict, run_dir: Path, log: Log = print) -> Path:
+    cfg = load_detection_config(config_source)
+    check_inputs(cfg)
+    run_dir = Path(run_dir)
+    if (run_dir / "config.json").exists():
+        old = json.loads((run_dir / "config.json").read_text())
+        if old != json.loads(cfg.model_dump_json()):
+            raise UserInputError(f"--out: {str(run_dir)!r} holds a run of another config; choose a new folder")
+    t0 = time.perf_counter()
+    data = resolve_data(cfg, run_dir, log, tests=False)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    write_json(run_dir / "config.json", json.loads(cfg.model_dump_json()))
+    torch.set_num_threads(cfg.train.threads)
+    seqs = load_split(data, cfg, "train")
+    write_json(run_dir / "data.json", {**data, "train_sequences": [s.name for s in seqs],
+                                       "degradations": {s.name: s.degradations for s in seqs}})
+    (run_dir / "models").mkdir(exist_ok=True)
+    todo = [n for n in models_needed(cfg.conditions) if not (run_dir / "models" / f"{n}.pt").is_file()]
+    records = []
+    if cfg.train.workers > 1 and len(todo) > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        del seqs
+        log(f"train: {len(todo)} models in {min(cfg.train.workers, len(todo))} processes")
+        with ProcessPoolExecutor(min(cfg.train.workers, len(todo)), mp_context=mp.get_context("spawn")) as pool:
+            futures = [pool.submit(_train_one, json.loads(cfg.model_dump_json()), data, n, str(run_dir)) for n in todo]
+            for f in futures:
+                records.append(f.result())
+                log(f"train: {records[-1]['name']} done in {records[-1]['seconds']} s")
+    else:
+        for name in todo:
+            model, rec = train_model(name, seqs, cfg.train, log)
+            torch.save(model.state_dict(), run_dir / "models" / f"{name}.pt")
+            records.append(rec)
+    old = json.loads((run_dir / "train.json").read_text()) if (run_dir / "train.json").is_file() else {"models": []}
+    write_json(run_dir / "train.json", {"models": old["models"] + records})
+    mark_stage(run_dir, "train", time.perf_counter() - t0)
+    return run_dir
+
+
+def _train_one(cfg_dict: dict, data: dict, name: str, run_dir: str) -> dict:
+    """Worker: load the training split, train one model, save it (atomically) and return its record."""
+    cfg = load_detection_config(cfg_dict)
+    torch.set_num_threads(1)
+    seqs = load_split(data, cfg, "train")
+    model, rec = train_model(name, seqs, cfg.train, None)
+    path = Path(run_dir) / "models" / f"{name}.pt"
+    tmp = path.with_suffix(".pt.tmp")
+    torch.save(model.state_dict(), tmp)
+    tmp.replace(path)
+    return rec
+
+
+def load_models(run_dir: Path, cfg: DetectionConfig) -> dict[str, torch.nn.Module]:
+    models = {}
+    for name in models_needed(cfg.conditions):
+        path = Path(run_dir) / "models" / f"{name}.pt"
+        if not path.is_file():
+            raise UserInputError(f"{run_dir}: model {name} is missing; run `evids detect train` first")
+        m = build_model(name, cfg.train.width)
+        m.load_state_dict(torch.load(path, weights_only=True))
+        models[name] = m.eval()
+    return models
+
+
+# ------------------------------------------------------------------------------------- inference
+def compute_maps(seq: SequenceData, models: dict[str, torch.nn.Module]) -> dict[str, StreamMaps]:
+    x = inputs(seq)
+    maps: dict[str, StreamMaps] = {}
+    for name, m in models.items():
+        if name == "fusion_sigmoid":
+            maps[name] = run_model(m, (x["rgb"], x["thermal"]))
+        else:
+            maps[name] = run_model(m, x[name.split("_")[0]])
+    return maps
+
+
+def gated_dets(seq: SequenceData, maps: dict[str, StreamMaps], cfg: DetectionConfig, gate: dict[str, float]):
+    """Condition (f): DS with the window-form hysteresis gate on per-frame stream vacuity."""
+    floor, k = cfg.tracker.score_floor, cfg.tracker.max_peaks
+    r, t = maps["rgb_evidential"], maps["thermal_evidential"]
+    avail, evaluated = gate_mask(frame_vacuity(r), frame_vacuity(t), gate["tau_high"], gate["tau_low"], cfg.gate.n)
+    if seq.registered:
+        return fused_registered(r, t, "ds", floor, k, avail), avail, evaluated
+    return fused_matched(r, t, "ds", floor, k, MATCH_PX, avail), avail, evaluated
+
+
+def condition_dets(seq: SequenceData, maps: dict[str, StreamMaps], cfg: DetectionConfig,
+                   gate: dict[str, float] | None, temperature: float | None) -> dict[str, Any]:
+    """All condition-stream detections of one sequence (f needs ``gate``, h needs ``temperature``)."""
+    floor, k = cfg.tracker.score_floor, cfg.tracker.max_peaks
+    dets: dict[str, Any] = {}
+    gate_info = None
+    for c in cfg.conditions:
+        if c == "a_sigmoid":
+            for s in ("rgb", "thermal"):
+                dets[f"{c}/{s}"] = single_stream(maps[f"{s}_sigmoid"], floor, k)
+        elif c in ("b_evidential", "c_evidential_tau"):
+            for s in ("rgb", "thermal"):
+                dets[f"{c}/{s}"] = dets.get(f"b_evidential/{s}") or single_stream(maps[f"{s}_evidential"], floor, k)
+        elif c in ("d_average", "e_ds"):
+            rule = "average" if c == "d_average" else "ds"
+            r, t = maps["rgb_evidential"], maps["thermal_evidential"]
+            if seq.registered:
+                dets[f"{c}/fused"] = fused_registered(r, t, rule, floor, k)
+            else:
+                dets[f"{c}/fused"] = fused_matched(r, t, rule, floor, k, MATCH_PX)
+        elif c == "f_ds_gated" and gate is not None:
+            dets[f"{c}/fused"], avail, evaluated = gated_dets(seq, maps, cfg, gate)
+            gate_info = {"fused": avail, "evaluated": evaluated}
+        elif c == "g_feature_fusion":
+            dets[f"{c}/fused"] = single_stream(maps["fusion_sigmoid"], floor, k)
+        elif c == "h_feature_fusion_ts" and temperature is not None:
+            fm = maps["fusion_sigmoid"]
+            z = fm.logit / temperature
+            dets[f"{c}/fused"] = single_stream(StreamMaps(torch.sigmoid(z), fm.box, None, z), floor, k)
+    extra: dict[str, Any] = {"gate": gate_info}
+    if "thermal_evidential" in maps:
+        extra["thermal_u_at_target"], extra["thermal_p_at_target"] = _at_target(maps["thermal_evidential"], seq.gt_thermal)
+        extra["rgb_u_at_target"], extra["rgb_p_at_target"] = _at_target(maps["rgb_evidential"], seq.gt_rgb)
+        extra["frame_u"] = {"rgb": frame_vacuity(maps["rgb_evidential"]), "thermal": frame_vacuity(maps["thermal_evidential"])}
+        if seq.registered:
+            extra["ds_conflict_at_target"] = fuse_maps_at_target(maps, seq)[2]
+    return {"dets": dets, "extra": extra}
+
+
+def _at_target(maps: StreamMaps, gt: list) -> tuple[np.ndarray, np.ndarray]:
+    from evids.models.detector import STRIDE
+
+    h, w = maps.prob.shape[1:]
+    u, p = np.full(len(gt), np.nan), np.full(len(gt), np.nan)
+    for t, g in enumerate(gt):
+        if g is None:
+            continue
+        i = min(int((g[1] + g[3] / 2) // STRIDE), h - 1)
+        j = min(int((g[0] + g[2] / 2) // STRIDE), w - 1)
+        u[t] = float(maps.vacuity[t, i, j])
+        p[t] = float(maps.prob[t, i, j])
+    return u, p
+
+
+def fuse_maps_at_target(maps: dict[str, StreamMaps], seq: SequenceData):
+    from evids.experiments.detection.conditions import fuse_maps
+    from evids.models.detector import STRIDE
+
+    p, u, c = fuse_maps(maps["rgb_evidential"], maps["thermal_evidential"], "ds")
+    h, w = p.shape[1:]
+    out = np.full(seq.n_frames, np.nan)
+    for t, g in enumerate(seq.gt_rgb):
+        if g is not None:
+            out[t] = float(c[t, min(int((g[1] + g[3] / 2) // STRIDE), h - 1), min(int((g[0] + g[2] / 2) // STRIDE), w - 1)])
+    return p, u, out
+
+
+def gt_of(seq: SequenceData, key: str) -> list:
+    return seq.gt_thermal if key.endswith("/thermal") else seq.gt_rgb
+
+
+# ------------------------------------------------------------------------------------ fitting
+def _seq_state(frames: list[FrameDetections], gt: list, det_thr: float, theta: float, cfg, tau_det=None) -> tuple[float, list]:
+    from evids.experiments.detection.metrics import per_frame_state_values
+
+    steps = run_tracker(frames, det_thr, theta, cfg.tracker.search_px, tau_det)
+    return float(np.mean(per_frame_state_values([s.box for s in steps], gt))), steps
+
+
+def fit_tracking(val: list[tuple[SequenceData, dict]], key: str, cfg: DetectionConfig, tau_det_grid: bool = False) -> dict[str, float]:
+    """Grid search on val for the detection threshold and the tracker's switching threshold theta
+    (and tau_det for condition (c)), maximising mean per-sequence state accuracy."""
+    det_grid = [0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9]
+    unc_all = np.concatenate([np.concatenate([f.uncertainty for f in out["dets"][key][0]] or [np.zeros(0)])
+                              for _, out in val]) if val else np.zeros(0)
+    qs = np.unique(np.quantile(unc_all, [0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 1.0])) if unc_all.size else np.array([1.0])
+    theta_grid = [float(q) + 1e-9 for q in qs] if cfg.tracker.theta is None else [cfg.tracker.theta]
+    tau_grid = [None] + ([float(q) + 1e-9 for q in qs] if tau_det_grid else [])
+    best = {"score": -1.0}
+    for d in det_grid:
+        for th in theta_grid:
+            for tau in tau_grid:
+                if tau_det_grid and tau is None:
+                    continue
+                vals = [_seq_state(out["dets"][key][0], gt_of(seq, key), d, th, cfg, tau)[0] for seq, out in val]
+                score = float(np.mean(vals)) if vals else 0.0
+                if score > best["score"] + 1e-12:
+                    best = {"score": score, "det_threshold": d, "theta": th, "tau_det": tau}
+    best["fitted_on"] = "val"
+    return best
+
+
+def fit_gate(val: list[tuple[SequenceData, dict]], val_maps: list[dict], cfg: DetectionConfig, track_fit: dict) -> dict[str, float]:
+    """tau_high from the val distribution of per-frame stream vacuity: the quantile (grid) that
+    maximises val state accuracy of (f), with (e)'s fitted tracking thresholds."""
+    if cfg.gate.tau_high is not None:
+        return {"tau_high": cfg.gate.tau_high, "tau_low": cfg.gate.tau_high * cfg.gate.tau_low_fraction, "fitted_on": "config"}
+    u = np.concatenate([np.concatenate([o["extra"]["frame_u"]["rgb"], o["extra"]["frame_u"]["thermal"]]) for _, o in val])
+    best = {"score": -1.0}
+    for q in (0.5, 0.7, 0.8, 0.9, 0.95, 0.99):
+        tau_high = float(min(np.quantile(u, q), 1.0))
+        gate = {"tau_high": tau_high, "tau_low": tau_high * cfg.gate.tau_low_fraction}
+        vals = []
+        for (s, _), maps in zip(val, val_maps):
+            (frames, _), _, _ = gated_dets(s, maps, cfg, gate)
+            vals.append(_seq_state(frames, s.gt_rgb, track_fit["det_threshold"], track_fit["theta"], cfg)[0])
+        score = float(np.mean(vals)) if vals else 0.0
+        if score > best["score"] + 1e-12:
+            best = {"score": score, "quantile": q, **gate}
+    best["fitted_on"] = "val"
+    return best
+
+
+def fit_temperature_on_val(val: list[tuple[SequenceData, dict]]) -> float:
+    from evids.experiments.detection.metrics import detections_matched
+    from evids.metrics import fit_temperature
+
+    logits, labels = [], []
+    for seq, out in val:
+        frames, decoded = out["dets"]["g_feature_fusion/fused"]
+        for t, (f, d) in enumerate(zip(frames, decoded)):
+            tp = detections_matched(f.boxes, f.scores, seq.gt_rgb[t])
+            logits.append(d["logit"])
+            labels.append(tp.astype(np.float64))
+    z, y = np.concatenate(logits), np.concatenate(labels)
+    return float(fit_temperature(z, y, t_min=0.05, t_max=200.0)) if z.size else 1.0
+
+
+# ------------------------------------------------------------------------------------- evaluate
+def _keys(cfg: DetectionConfig) -> list[str]:
+    return [f"{c}/{s}" for c in cfg.conditions for s in STREAM_KEYS[c]]
+
+
+def _tracker_name(key: str) -> str:
+    return key.replace("/", "__")
+
+
+def _crop_uncertainty(model, img: np.ndarray, boxes: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
+    """Alpha at the most probable location of the crop's central half, for each detection box, (N, 2)."""
+    if boxes.shape[0] == 0:
+        return np.zeros((0, 2))
+    crops = np.stack([crop_resize(img, b, cfg.crop_context, cfg.crop_px) for b in boxes])
+    with torch.no_grad():
+        out = model(torch.from_numpy(crops))
+    h, w = out.prob.shape[1:]
+    q0, q1 = h // 4, w // 4
+    centre = out.prob[:, q0:h - q0, q1:w - q1].reshape(len(boxes), -1)
+    idx = centre.argmax(1)
+    a = out.alpha[:, q0:h - q0, q1:w - q1].reshape(len(boxes), -1, 2)
+    return a[torch.arange(len(boxes)), idx].numpy().astype(np.float64)
+
+
+def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, temperature, fitted, exports: Path,
+                       keys: list[str], want_example: bool) -> dict[str, Any]:
+    """Conditions, tracking and per-detection/crop/frame rows of one test sequence."""
+    from evids.experiments.detection import metrics as M
+    from evids.fusion import dempster_shafer
+
+    per_seq: list[dict[str, Any]] = []
+    det_rows: list[dict[str, Any]] = []
+    crop_rows: list[dict[str, Any]] = []
+    frame_rows: list[dict[str, Any]] = []
+    coco_dets: dict[str, list] = {}
+    example = None
+    maps = compute_maps(seq, models)
+    out = condition_dets(seq, maps, cfg, gate, temperature)
+    video = f"{seq.set_name}_{seq.name}"
+    ex = out["extra"]
+    for t in range(seq.n_frames):
+        frame_rows.append({"set": seq.set_name, "sequence": video, "frame": t, "exist": seq.gt_rgb[t] is not None,
+                           "exist_thermal": seq.gt_thermal[t] is not None,
+                           "rgb_observed": bool(seq.rgb_observed[t]), "thermal_observed": bool(seq.thermal_observed[t]),
+                           "contrast_k": seq.contrast_k[t], "netd_k": seq.netd_k,
+                           "thermal_u_at_target": ex.get("thermal_u_at_target", [np.nan] * seq.n_frames)[t],
+                           "thermal_p_at_target": ex.get("thermal_p_at_target", [np.nan] * seq.n_frames)[t],
+                           "rgb_u_at_target": ex.get("rgb_u_at_target", [np.nan] * seq.n_frames)[t],
+                           "rgb_p_at_target": ex.get("rgb_p_at_target", [np.nan] * seq.n_frames)[t],
+                           "ds_conflict_at_target": (ex.get("ds_conflict_at_target") if ex.get("ds_conflict_at_target") is not None
+                                                     else [np.nan] * seq.n_frames)[t]})
+    if ex.get("gate") is not None:
+        ev = ex["gate"]["evaluated"]
+        per_seq.append({"set": seq.set_name, "sequence": video, "key": "_gate", "rgb_evaluated": float(ev[:, 0].mean()),
+                        "thermal_evaluated": float(ev[:, 1].mean()), "rgb_fused": float(ex["gate"]["fused"][:, 0].mean()),
+                        "thermal_fused": float(ex["gate"]["fused"][:, 1].mean())})
+    for key in keys:
+        if key not in out["dets"]:
+            continue
+        frames, decoded = out["dets"][key]
+        gt = gt_of(seq, key)
+        f = fitted[key]
+        steps = run_tracker(frames, f["det_threshold"], f["theta"], cfg.tracker.search_px, f.get("tau_det"))
+        boxes_out = [s.box for s in steps]
+        M.write_mot_tracker(exports / "mot" / "trackers" / f"{'IR' if key.endswith('/thermal') else 'RGB'}-{seq.set_name}"
+                            / _tracker_name(key) / "data" / f"{video}.txt", boxes_out, [s.score for s in steps],
+                            [s.track_id for s in steps])
+        label_file = exports / "antiuav" / seq.set_name / (video if key.endswith("/thermal") else f"{video}_visible") / (
+            "IR_label.json" if key.endswith("/thermal") else "visible.json")
+        sa = M.antiuav_state_accuracy(label_file, boxes_out)
+        vals = M.per_frame_state_values(boxes_out, gt)
+        th_blind = np.array([g is not None for g in gt]) & ~seq.thermal_observed
+        rgb_blind = np.array([g is not None for g in gt]) & ~seq.rgb_observed
+        exist = np.array([g is not None for g in gt])
+        per_seq.append({"set": seq.set_name, "sequence": video, "key": key, "state_acc": sa["plain"],
+                        "state_acc_penalised": sa["penalised"],
+                        "acc_thermal_blind": float(vals[th_blind].mean()) if th_blind.any() else np.nan,
+                        "acc_rgb_blind": float(vals[rgb_blind].mean()) if rgb_blind.any() else np.nan,
+                        "trk_on_abs": tracking_on_absence(steps, exist), "absent_frames": int((~exist).sum()),
+                        "handovers": int(sum(s.handed_over for s in steps)),
+                        "tracker_share": float(np.mean([s.in_control == "tracker" for s in steps]))})
+        coco_dets.setdefault(f"{seq.set_name}|{key}", []).extend(
+            (video, t, fr.boxes, fr.scores) for t, fr in enumerate(frames))
+        for t, (fr, d) in enumerate(zip(frames, decoded)):
+            all_gt = (seq.boxes_thermal if key.endswith("/thermal") else seq.boxes_rgb)[t]
+            tp = M.detections_matched(fr.boxes, fr.scores, all_gt)
+            for i in range(fr.boxes.shape[0]):
+                p = float(fr.scores[i])
+                ent = -(p * np.log(max(p, 1e-300)) + (1 - p) * np.log(max(1 - p, 1e-300)))
+                det_rows.append({"set": seq.set_name, "sequence": video, "key": key, "frame": t, "score": p,
+                                 "unc": float(fr.uncertainty[i]), "entropy": ent, "tp": bool(tp[i]),
+                                 "area": float(fr.boxes[i, 2] * fr.boxes[i, 3])})
+        if key.startswith("b_evidential/"):
+            stream = key.split("/")[1]
+            model = models[f"{stream}_evidential"]
+            x = inputs(seq)
+            other = "thermal" if stream == "rgb" else "rgb"
+            for t, fr in enumerate(frames):
+                top = np.argsort(-fr.scores, kind="stable")[:5]
+                if top.size == 0:
+                    continue
+                img = x[stream][t].numpy()
+                a = _crop_uncertainty(model, img, fr.boxes[top], cfg)
+                all_gt = (seq.boxes_thermal if stream == "thermal" else seq.boxes_rgb)[t]
+                tp = M.detections_matched(fr.boxes[top], fr.scores[top], all_gt)
+                avg_u = np.full(top.size, np.nan)
+                if seq.registered:
+                    b_other = _crop_uncertainty(models[f"{other}_evidential"], x[other][t].numpy(), fr.boxes[top], cfg)
+                    avg_u = 2.0 / ((a + b_other) / 2).sum(1)
+                ds = dempster_shafer(torch.tensor(np.stack([a, a])))
+                for i in range(top.size):
+                    crop_rows.append({"set": seq.set_name, "sequence": video, "stream": stream, "frame": t,
+                                      "tp": bool(tp[i]), "anchor_u": float(fr.uncertainty[top[i]]),
+                                      "crop_u": float(2.0 / a[i].sum()), "crop_u_avg": float(avg_u[i]),
+                                      "crop_u_ds_identical": float(ds.u[i]),
+                                      "area": float(fr.boxes[top[i], 2] * fr.boxes[top[i], 3])})
+    if want_example and seq.set_name == cfg.crossover_set:
+        example = _example_frames(seq, maps, out, fitted, cfg)
+    return {"per_seq": per_seq, "det_rows": det_rows, "crop_rows": crop_rows, "frame_rows": frame_rows,
+            "coco_dets": coco_dets, "example": example}
+
+_WORKER: dict[str, Any] = {}
+
+
+def _worker_init(cfg_dict: dict, run_dir: str) -> None:
+    """Per-process state for parallel evaluation: the config and the frozen models."""
+    cfg = load_detection_config(cfg_dict)
+    torch.set_num_threads(1 if cfg.train.workers > 1 else cfg.train.threads)
+    _WORKER["cfg"] = cfg
+    _WORKER["models"] = load_models(Path(run_dir), cfg)
+
+
+def _evaluate_entry(args, set_name: str, dataset_index: int, entry: dict) -> dict[str, Any]:
+    _, _, gate, temperature, fitted, exports, keys = args
+    cfg = _WORKER["cfg"]
+    seq = load_sequence(entry, set_name, cfg, cfg.train.seed, dataset_index)
+    first = entry["name"] == "seq000001"
+    return _evaluate_sequence(seq, _WORKER["models"], cfg, gate, temperature, fitted, Path(exports), keys, first)
+
+
+def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
+    from evids.experiments.detection import metrics as M
+
+    run_dir = Path(run_dir)
+    if not (run_dir / "config.json").is_file() or not (run_dir / "data.json").is_file():
+        raise UserInputError(f"{run_dir}: not a detection run folder (no config.json/data.json); run `evids detect train` first")
+    cfg = load_detection_config(json.loads((run_dir / "config.json").read_text()))
+    data = json.loads((run_dir / "data.json").read_text())
+    t0 = time.perf_counter()
+    if "test" not in data:
+        data.update(resolve_data(cfg, run_dir, log, tests=True))
+        write_json(run_dir / "data.json", data)
+    torch.set_num_threads(cfg.train.threads)
+    models = load_models(run_dir, cfg)
+    keys = _keys(cfg)
+
+    # ---- fit every threshold on val (never on test)
+    log("evaluate: fitting thresholds on val")
+    val_seqs = load_split(data, cfg, "val")
+    val_maps = [compute_maps(s, models) for s in val_seqs]
+    val = [(s, condition_dets(s, m, cfg, None, None)) for s, m in zip(val_seqs, val_maps)]
+    fitted: dict[str, Any] = {}
+    temperature = fit_temperature_on_val(val) if "h_feature_fusion_ts" in cfg.conditions else None
+    gate = None
+    for key in keys:
+        if key.startswith(("f_", "h_")):
+            continue
+        fitted[key] = fit_tracking(val, key, cfg, tau_det_grid=key.startswith("c_"))
+    if "f_ds_gated" in cfg.conditions:
+        gate = fit_gate(val, val_maps, cfg, fitted["e_ds/fused"])
+    if gate is not None or temperature is not None:
+        val = [(s, condition_dets(s, m, cfg, gate, temperature)) for s, m in zip(val_seqs, val_maps)]
+        for key in keys:
+            if key.startswith(("f_", "h_")):
+                fitted[key] = fit_tracking(val, key, cfg)
+    del val_maps, val
+    write_json(run_dir / "fitted.json", {"tracking": fitted, "gate": gate, "temperature": temperature,
+                                         "val_sequences": [s.name for s in val_seqs]})
+
+    # ---- exports of the test ground truth (the benchmarks' layouts) and per-sequence evaluation
+    log("evaluate: exporting test ground truth (COCO, MOT, Anti-UAV) and running the conditions")
+    from simulator.formats.antiuav import export_antiuav
+
+    exports = run_dir / "exports"
+    test_sets: dict[str, list[dict]] = {}
+    for k, (name, path) in enumerate(sorted(data["test"].items())):
+        ents = [e for e in dataset_entries(Path(path), ("test",), f"data.test.{name}") if e["split"] == "test"]
+        test_sets[name] = [{**e, "video": f"{name}_{e['name']}"} for e in ents]
+    image_ids: dict[str, dict[str, int]] = {}
+    for set_name, ents in test_sets.items():
+        named = [{**e, "name": e["video"]} for e in ents]
+        for modality in ("rgb", "ir"):
+            image_ids[f"{set_name}/{modality}"] = M.write_coco_gt(named, modality, exports / "coco" / f"{set_name}_{modality}.json")
+        for camera, bench in (("rgb", "RGB"), ("thermal", "IR")):
+            M.write_mot_gt(named, camera, exports / "mot" / "gt", f"{bench}-{set_name}")
+        for e in ents:
+            export_antiuav(Path(e["path"]), exports / "antiuav" / set_name, e["video"])
+
+    entries = [(name, k + 1, e) for k, (name, path) in enumerate(sorted(data["test"].items()))
+               for e in dataset_entries(Path(path), ("test",), f"data.test.{name}") if e["split"] == "test"]
+    args = (json.loads(cfg.model_dump_json()), str(run_dir), gate, temperature, fitted, str(exports), keys)
+    workers = min(cfg.train.workers, len(entries))
+    results = []
+    if workers > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"), initializer=_worker_init, initargs=args[:2]) as pool:
+            futures = [pool.submit(_evaluate_entry, args, name, k, e) for name, k, e in entries]
+            for i, f in enumerate(futures):
+                results.append(f.result())
+                if (i + 1) % 6 == 0 or i + 1 == len(futures):
+                    log(f"  {i + 1}/{len(futures)} test sequences")
+    else:
+        _worker_init(*args[:2])
+        results = [_evaluate_entry(args, name, k, e) for name, k, e in entries]
+    per_seq = [r for res in results for r in res["per_seq"]]
+    det_rows = [r for res in results for r in res["det_rows"]]
+    crop_rows = [r for res in results for r in res["crop_rows"]]
+    frame_rows = [r for res in results for r in res["frame_rows"]]
+    coco_dets: dict[str, list] = {}
+    for res in results:
+        for key, v in res["coco_dets"].items():
+            coco_dets.setdefault(key, []).extend(v)
+    example = next((res["example"] for res in results if res["example"] is not None), None)
+    if example is not None:
+        np.savez_compressed(run_dir / "example_crossover.npz", **example)
+    write_csv(run_dir / "tables" / "per_sequence.csv", per_seq)
+    write_csv(run_dir / "tables" / "detections.csv", det_rows)
+    write_csv(run_dir / "tables" / "crops.csv", crop_rows)
+    write_csv(run_dir / "tables" / "frames.csv", frame_rows)
+
+    # ---- the field's tools on the exported files
+    log("evaluate: COCOeval, TrackEval, Anti-UAV state accuracy")
+    ap50 = {}
+    for sk, dets in coco_dets.items():
+        set_name, key = sk.split("|")
+        modality = "ir" if key.endswith("/thermal") else "rgb"
+        ap50[sk] = M.coco_ap50(exports / "coco" / f"{set_name}_{modality}.json",
+                               exports / "coco" / "results" / f"{set_name}__{_tracker_name(key)}.json", dets,
+                               image_ids[f"{set_name}/{modality}"])
+    mot = {}
+    for set_name in test_sets:
+        for bench, suffix in (("RGB", ("/rgb", "/fused")), ("IR", ("/thermal",))):
+            trackers = [_tracker_name(k) for k in keys if k.endswith(suffix)]
+            trackers = [t for t in trackers if (exports / "mot" / "trackers" / f"{bench}-{set_name}" / t).is_dir()]
+            if trackers:
+                res = M.trackeval_mot(exports / "mot" / "gt", exports / "mot" / "trackers", bench, set_name, trackers)
+                for tr, rows in res.items():
+                    mot[f"{set_name}|{tr.replace('__', '/')}"] = rows
+    write_json(run_dir / "tables" / "tools.json", {"ap50": ap50, "mot": mot})
+    mark_stage(run_dir, "evaluate_conditions", time.perf_counter() - t0)
+    log("evaluate: timing the gate (batch 1, real skipped forwards)")
+    timing_seqs = [load_sequence(e, name, cfg, cfg.train.seed, k) for name, k, e in entries if e["name"] in ("seq000001", "seq000002")]
+    write_json(run_dir / "tables" / "gate_timing.json", time_gating(timing_seqs, models, cfg, gate) if gate is not None else None)
+    log("evaluate: statistics")
+    summary = summarise_run(run_dir)
+    mark_stage(run_dir, "evaluate", time.perf_counter() - t0)
+    return summary
+
+
+_TEXT_FIELDS = {"set", "sequence", "key", "stream"}
+
+
+def _read_rows(path: Path) -> list[dict[str, Any]]:
+    import csv
+
+    def conv(k: str, v: str) -> Any:
+        if k in _TEXT_FIELDS:
+            return v
+        if v in ("True", "False"):
+            return v == "True"
+        if v == "":
+            return float("nan")
+        try:
+            return float(v)
+        except ValueError:
+            return v
+
+    with open(path, newline="") as fh:
+        return [{k: conv(k, v) for k, v in row.items()} for row in csv.DictReader(fh)]
+
+
+def summarise_run(run_dir: Path) -> dict[str, Any]:
+    """Statistics and headline answers from a run folder's tables (re-runnable without the models)."""
+    run_dir = Path(run_dir)
+    cfg = load_detection_config(json.loads((run_dir / "config.json").read_text()))
+    t = run_dir / "tables"
+    tools = json.loads((t / "tools.json").read_text())
+    fitted = json.loads((run_dir / "fitted.json").read_text())
+    summary = summarise(cfg, _read_rows(t / "per_sequence.csv"), _read_rows(t / "detections.csv"), _read_rows(t / "crops.csv"),
+                        _read_rows(t / "frames.csv"), tools["ap50"], tools["mot"], fitted["tracking"], fitted["gate"])
+    summary["gate_timing"] = json.loads((t / "gate_timing.json").read_text())
+    summary["headline"] = headline(summary, cfg)
+    write_json(run_dir / "metrics.json", summary)
+    return summary
+
+
+def _example_frames(seq: SequenceData, maps, out, fitted, cfg) -> dict[str, np.ndarray]:
+    """Four frames around the crossover for the report: images, GT, per-stream and fused tops, u maps."""
+    cand = np.flatnonzero(~seq.thermal_observed & seq.exist)
+    centre = int(cand[len(cand) // 2]) if cand.size else seq.n_frames // 2
+    idx = np.unique(np.clip([centre - 8, centre - 3, centre, centre + 4], 0, seq.n_frames - 1))
+    top = {}
+    for key in ("b_evidential/rgb", "b_evidential/thermal", "e_ds/fused", "d_average/fused", "g_feature_fusion/fused"):
+        if key in out["dets"]:
+            frames = out["dets"][key][0]
+            top[key] = np.array([f.boxes[0] if f.boxes.shape[0] else [np.nan] * 4 for f in (frames[i] for i in idx)])
+            top[key + "_score"] = np.array([f.scores[0] if f.scores.size else np.nan for f in (frames[i] for i in idx)])
+    res = {"frames": idx, "rgb": seq.rgb[idx], "thermal_k": seq.thermal_k[idx],
+           "gt_rgb": np.array([g if g is not None else [np.nan] * 4 for g in (seq.gt_rgb[i] for i in idx)]),
+           "gt_thermal": np.array([g if g is not None else [np.nan] * 4 for g in (seq.gt_thermal[i] for i in idx)]),
+           "contrast_k": seq.contrast_k[idx], "netd_k": np.array(seq.netd_k), "name": np.array(seq.name)}
+    if "rgb_evidential" in maps:
+        from evids.experiments.detection.conditions import fuse_maps
+
+        p, u, _ = fuse_maps(maps["rgb_evidential"], maps["thermal_evidential"], "ds")
+        res["u_rgb"] = maps["rgb_evidential"].vacuity[idx].numpy()
+        res["u_thermal"] = maps["thermal_evidential"].vacuity[idx].numpy()
+        res["u_fused"] = u[idx].numpy()
+    res.update({k.replace("/", "__"): v for k, v in top.items()})
+    return res
+
+
+# ------------------------------------------------------------------------------------ summaries
+def _mean(rows: list[dict], field: str) -> float:
+    v = np.array([r[field] for r in rows if r.get(field) is not None], float)
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if v.size else float("nan")
+
+
+def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, gate) -> dict[str, Any]:
+    from evids.experiments.detection import metrics as M
+    from evids.metrics import detection_ece
+
+    seed, nb = cfg.bootstrap.seed, cfg.bootstrap.n_resamples
+    nb_u = cfg.bootstrap.n_resamples_uauc
+    keys = _keys(cfg)
+    sets = sorted({r["set"] for r in per_seq})
+    table = []
+    for set_name in sets + ["all"]:
+        for key in keys:
+            rows = [r for r in per_seq if r["key"] == key and (set_name == "all" or r["set"] == set_name)]
+            if not rows:
+                continue
+            dets = [r for r in det_rows if r["key"] == key and (set_name == "all" or r["set"] == set_name)]
+            row = {"set": set_name, "key": key, "n_sequences": len(rows), "state_acc": _mean(rows, "state_acc"),
+                   "state_acc_penalised": _mean(rows, "state_acc_penalised"),
+                   "acc_thermal_blind": _mean(rows, "acc_thermal_blind"), "acc_rgb_blind": _mean(rows, "acc_rgb_blind"),
+                   "trk_on_abs": _mean(rows, "trk_on_abs"), "tracker_share": _mean(rows, "tracker_share")}
+            if set_name != "all":
+                row["ap50"] = ap50.get(f"{set_name}|{key}", float("nan"))
+                m = mot.get(f"{set_name}|{key}", {})
+                if "COMBINED_SEQ" in m:
+                    row.update({k: m["COMBINED_SEQ"][k] for k in ("mota", "idf1", "hota", "ids")})
+            if dets:
+                s = np.array([d["score"] for d in dets])
+                tp = np.array([d["tp"] for d in dets])
+                row["det_ece"] = detection_ece(s, tp)
+                row["n_detections"], row["n_tp"] = len(dets), int(tp.sum())
+            table.append(row)
+    # paired comparisons on per-sequence plain state accuracy (and thermal-blind frames)
+    pairs = [("b_evidential/rgb", "a_sigmoid/rgb"), ("b_evidential/thermal", "a_sigmoid/thermal"),
+             ("c_evidential_tau/rgb", "b_evidential/rgb"), ("c_evidential_tau/thermal", "b_evidential/thermal"),
+             ("e_ds/fused", "d_average/fused"), ("e_ds/fused", "g_feature_fusion/fused"),
+             ("f_ds_gated/fused", "e_ds/fused"), ("h_feature_fusion_ts/fused", "g_feature_fusion/fused"),
+             ("e_ds/fused", "b_evidential/rgb"), ("d_average/fused", "g_feature_fusion/fused")]
+    comps = []
+    for set_name in sets + ["all"]:
+        for a, b in pairs:
+            for field in ("state_acc", "acc_thermal_blind"):
+                ra = {r["sequence"]: r[field] for r in per_seq if r["key"] == a and (set_name == "all" or r["set"] == set_name)}
+                rb = {r["sequence"]: r[field] for r in per_seq if r["key"] == b and (set_name == "all" or r["set"] == set_name)}
+                common = sorted(set(ra) & set(rb))
+                if len(common) < 2:
+                    continue
+                c = M.paired_comparison([ra[s] for s in common], [rb[s] for s in common], seed, nb)
+                comps.append({"set": set_name, "a": a, "b": b, "metric": field, **c})
+    # uncertainty ranking at anchor level (decoded detections) and at crop level
+    unc = []
+    for key in keys:
+        dets = [d for d in det_rows if d["key"] == key]
+        if not dets:
+            continue
+        area = np.array([d["area"] for d in dets])
+        strata = M.area_stratum(area)
+        for stratum in ["all"] + [s for s, _, _ in M.AREA_STRATA]:
+            sel = np.ones(len(dets), bool) if stratum == "all" else strata == stratum
+            if sel.sum() == 0:
+                continue
+            err = ~np.array([d["tp"] for d in dets])[sel]
+            cl = np.array([d["sequence"] for d in dets])[sel]
+            scores = {"confidence": 1.0 - np.array([d["score"] for d in dets])[sel],
+                      "entropy": np.array([d["entropy"] for d in dets])[sel]}
+            if key.split("/")[0] in ("b_evidential", "c_evidential_tau", "d_average", "e_ds", "f_ds_gated"):
+                scores["vacuity"] = np.array([d["unc"] for d in dets])[sel]
+                tps = ~err
+                mean_u_tp = float(scores["vacuity"][tps].mean()) if tps.any() else np.nan
+                mean_u_fp = float(scores["vacuity"][err].mean()) if err.any() else np.nan
+            else:
+                mean_u_tp = mean_u_fp = np.nan
+            for name, u in scores.items():
+                unc.append({"level": "anchor", "key": key, "stratum": stratum, "score": name,
+                            "mean_u_tp": mean_u_tp if name == "vacuity" else np.nan,
+                            "mean_u_fp": mean_u_fp if name == "vacuity" else np.nan,
+                            **M.clustered_uauc(u, err, cl, seed, nb_u)})
+    for stream in ("rgb", "thermal"):
+        rows = [r for r in crop_rows if r["stream"] == stream]
+        if not rows:
+            continue
+        strata = M.area_stratum(np.array([r["area"] for r in rows]))
+        for stratum in ["all"] + [s for s, _, _ in M.AREA_STRATA]:
+            sel = np.ones(len(rows), bool) if stratum == "all" else strata == stratum
+            if sel.sum() == 0:
+                continue
+            err = ~np.array([r["tp"] for r in rows])[sel]
+            cl = np.array([r["sequence"] for r in rows])[sel]
+            for name in ("anchor_u", "crop_u", "crop_u_avg", "crop_u_ds_identical"):
+                u = np.array([r[name] for r in rows], float)[sel]
+                ok = np.isfinite(u)
+                if ok.sum() == 0:
+                    continue
+                unc.append({"level": "crop" if name != "anchor_u" else "anchor (same detections)", "key": f"b_evidential/{stream}",
+                            "stratum": stratum, "score": name, **M.clustered_uauc(u[ok], err[ok], cl[ok], seed, nb_u)})
+    # thermal vacuity against |dT| / NETD on frames with the target in the thermal frame
+    fr = [r for r in frame_rows if r["exist_thermal"] and np.isfinite(r["contrast_k"]) and np.isfinite(r["thermal_u_at_target"])]
+    vac = {}
+    if fr:
+        ratio = np.array([abs(r["contrast_k"]) / r["netd_k"] for r in fr])
+        u = np.array([r["thermal_u_at_target"] for r in fr])
+        p = np.array([r["thermal_p_at_target"] for r in fr])
+        cl = np.array([r["sequence"] for r in fr])
+        vac["spearman_u"] = M.spearman_clustered(ratio, u, cl, seed, nb_u)
+        vac["spearman_p"] = M.spearman_clustered(ratio, p, cl, seed, nb_u)
+        bins = [0, 1, 2, 4, 8, 16, 1e9]
+        vac["bins"] = [{"lo": lo, "hi": hi, "n": int(((ratio >= lo) & (ratio < hi)).sum()),
+                        "mean_u": float(u[(ratio >= lo) & (ratio < hi)].mean()) if ((ratio >= lo) & (ratio < hi)).any() else np.nan,
+                        "mean_p": float(p[(ratio >= lo) & (ratio < hi)].mean()) if ((ratio >= lo) & (ratio < hi)).any() else np.nan}
+                       for lo, hi in zip(bins[:-1], bins[1:])]
+        vac["points"] = {"ratio": ratio.tolist(), "u": u.tolist(), "set": [r["set"] for r in fr]}
+    conflict = {}
+    for set_name in sets:
+        c = np.array([r["ds_conflict_at_target"] for r in frame_rows if r["set"] == set_name and r["exist"]], float)
+        c = c[np.isfinite(c)]
+        if c.size:
+            conflict[set_name] = {"mean": float(c.mean()), "p90": float(np.quantile(c, 0.9)), "max": float(c.max()), "n": int(c.size)}
+    obs = {}
+    for set_name in sets:
+        rows = [r for r in frame_rows if r["set"] == set_name and r["exist"]]
+        obs[set_name] = {"frames_with_target": len(rows), "rgb_observed": _mean(rows, "rgb_observed"),
+                         "thermal_observed": _mean(rows, "thermal_observed"),
+                         "absent_frames": sum(1 for r in frame_rows if r["set"] == set_name and not r["exist"]),
+                         "sequences": len({r["sequence"] for r in frame_rows if r["set"] == set_name})}
+    gate_rows = [r for r in per_seq if r["key"] == "_gate"]
+    gate_usage = {k: _mean(gate_rows, k) for k in ("rgb_evaluated", "thermal_evaluated", "rgb_fused", "thermal_fused")} if gate_rows else None
+    return {"table": table, "comparisons": comps, "uncertainty": unc, "vacuity_vs_contrast": vac,
+            "ds_conflict_at_target": conflict, "observability": obs, "gate_usage": gate_usage, "fitted": fitted,
+            "gate": gate, "conditions": {c: CONDITIONS[c] for c in cfg.conditions}}
+
+
+def time_gating(seqs: list[SequenceData], models, cfg: DetectionConfig, gate: dict[str, float]) -> dict[str, Any]:
+    """Real CPU time per frame at batch 1: (e) both detectors + per-location DS on every frame vs
+    (f) only the detectors the gate plans to evaluate (window form) + DS with the vacuous opinion
+    for a skipped stream. Interleaved per sequence so both see the same machine load."""
+    import os
+
+    from evids.experiments.detection.conditions import fuse_maps
+    from evids.gating import GateParams, HysteresisGate
+
+    r_m, t_m = models["rgb_evidential"], models["thermal_evidential"]
+    t_full = t_gated = 0.0
+    frames = evaluated = 0
+    with torch.no_grad():
+        for seq in seqs:
+            x = inputs(seq)
+            t0 = time.perf_counter()
+            for t in range(seq.n_frames):
+                a = StreamMaps.of(r_m(x["rgb"][t:t + 1]))
+                b = StreamMaps.of(t_m(x["thermal"][t:t + 1]))
+                fuse_maps(a, b, "ds")
+            t_full += time.perf_counter() - t0
+            g = HysteresisGate(2, GateParams(tau_high=gate["tau_high"], tau_low=gate["tau_low"], n=cfg.gate.n, mode="window"))
+            t0 = time.perf_counter()
+            for t in range(seq.n_frames):
+                plan = g.plan()
+                outs = [StreamMaps.of(m(x[s][t:t + 1])) if ev else None
+                        for ev, m, s in zip(plan, (r_m, t_m), ("rgb", "thermal"))]
+                us = [float(frame_vacuity(o)[0]) if o is not None else 1.0 for o in outs]
+                fused = g.update(us)
+                ref = next(o for o in outs if o is not None)
+                vac = StreamMaps(ref.prob, ref.box, torch.ones_like(ref.alpha), None)
+                fuse_maps(outs[0] if outs[0] is not None and fused[0] else vac,
+                          outs[1] if outs[1] is not None and fused[1] else vac, "ds")
+                evaluated += sum(plan)
+            t_gated += time.perf_counter() - t0
+            frames += seq.n_frames
+    load = os.getloadavg()
+    return {"frames": frames, "full_s_per_frame": t_full / max(frames, 1), "gated_s_per_frame": t_gated / max(frames, 1),
+            "saving": 1.0 - t_gated / t_full if t_full > 0 else float("nan"),
+            "evaluated_fraction": evaluated / max(2 * frames, 1), "loadavg_1m": load[0],
+            "note": "measured inside the evaluate stage, machine load as printed"}
+
+
+def _verdict(c: dict | None, better: str, worse: str, unit: float = 100.0, what: str = "pp") -> str:
+    if c is None or not np.isfinite(c.get("diff", np.nan)):
+        return "not measured"
+    txt = (f"{better} - {worse} = {c['diff'] * unit:+.1f} {what} (sequence-bootstrap 95% CI [{c['ci_low'] * unit:+.1f}, "
+           f"{c['ci_high'] * unit:+.1f}], sign-flip p = {c['p']:.3f}, n = {c['n']} sequences, MDE {c['mde'] * unit:.1f} {what})")
+    if c["ci_low"] > 0 and c["p"] < 0.05:
+        return txt + f": {better} is better."
+    if c["ci_high"] < 0 and c["p"] < 0.05:
+        return txt + f": {better} is worse."
+    return txt + ": cannot be decided at this size."
+
+
+def _comp(summary, set_name, a, b, metric="state_acc"):
+    for c in summary["comparisons"]:
+        if c["set"] == set_name and c["a"] == a and c["b"] == b and c["metric"] == metric:
+            return c
+    return None
+
+
+def _unc(summary, level, key, score, stratum="all"):
+    for u in summary["uncertainty"]:
+        if u["level"] == level and u["key"] == key and u["score"] == score and u["stratum"] == stratum:
+            return u
+    return None
+
+
+def _uauc_txt(u) -> str:
+    if u is None or not np.isfinite(u.get("uauc", np.nan) if u.get("uauc") is not None else np.nan):
+        return "not estimable (one class missing)"
+    return f"{u['uauc']:.3f} [{u['ci_low']:.3f}, {u['ci_high']:.3f}] (n = {u['n']}, {u['n_error']} errors)"
+
+
+def headline(summary: dict[str, Any], cfg: DetectionConfig) -> dict[str, str]:
+    """The four headline questions, answered from the numbers (or 'cannot be decided at this size')."""
+    xs = cfg.crossover_set
+    out = {}
+    q1 = [_verdict(_comp(summary, xs, "e_ds/fused", "d_average/fused"), "DS", "average"),
+          _verdict(_comp(summary, xs, "e_ds/fused", "g_feature_fusion/fused"), "DS", "feature fusion"),
+          "On thermal-blind frames only: " + _verdict(_comp(summary, xs, "e_ds/fused", "d_average/fused", "acc_thermal_blind"),
+                                                     "DS", "average")]
+    out["q1_ds_through_crossover"] = f"State accuracy on the '{xs}' set. " + " ".join(q1)
+    v = summary.get("vacuity_vs_contrast", {})
+    if v.get("spearman_u"):
+        s = v["spearman_u"]
+        rises = s["ci_high"] < 0
+        out["q2_thermal_vacuity_vs_dT"] = (
+            f"Spearman rho(|dT|/NETD, thermal vacuity at the target cell) = {s['rho']:.3f} [{s['ci_low']:.3f}, {s['ci_high']:.3f}] "
+            f"over {s['n']} frames / {s.get('n_clusters', '?')} sequences: " +
+            ("vacuity rises as |dT| falls toward the NETD." if rises else
+             "vacuity does not rise as |dT| falls (the CI does not lie below 0)." if s["ci_low"] > 0 or s["ci_high"] >= 0 else ""))
+    else:
+        out["q2_thermal_vacuity_vs_dT"] = "not measured (no evidential thermal condition)"
+    parts = []
+    for stream in ("rgb", "thermal"):
+        a = _unc(summary, "anchor", f"b_evidential/{stream}", "vacuity")
+        c = _unc(summary, "crop", f"b_evidential/{stream}", "crop_u")
+        inv = a is not None and a.get("ci_high") is not None and np.isfinite(a["ci_high"]) and a["ci_high"] < 0.5
+        rec = c is not None and c.get("ci_low") is not None and np.isfinite(c["ci_low"]) and c["ci_low"] > 0.5
+        parts.append(f"{stream}: anchor-level vacuity UAUC {_uauc_txt(a)} ({'inverted' if inv else 'no inversion established'}); "
+                     f"crop-level {_uauc_txt(c)} ({'recovered (CI above 0.5)' if rec else 'not recovered (CI includes or is below 0.5)'}).")
+    out["q3_anchor_inversion_crop_recovery"] = " ".join(parts)
+    g = summary.get("gate_timing")
+    if g:
+        acc = _comp(summary, "all", "f_ds_gated/fused", "e_ds/fused")
+        out["q4_gating_saves_cpu"] = (
+            f"Batch-1 CPU time per frame: {g['full_s_per_frame'] * 1e3:.1f} ms without the gate, {g['gated_s_per_frame'] * 1e3:.1f} ms with it "
+            f"(saving {g['saving'] * 100:.1f} %, {g['evaluated_fraction'] * 100:.1f} % of stream forwards run; load average {g['loadavg_1m']:.1f}). "
+            f"Accuracy cost: " + _verdict(acc, "gated", "ungated"))
+    else:
+        out["q4_gating_saves_cpu"] = "not measured (condition f not run)"
+    return out
