@@ -65,6 +65,46 @@ def interpolate_level(table: tuple[float, ...], identity: float, severity: float
     return float(identity + s * (table[0] - identity))
 
 
+#: Closed domain [lo, hi] of every numeric parameter a user may set explicitly (spec files, the
+#: Python API, experiment configs). They bound physically meaningful values and the work a call can
+#: cause (a 1e5-pixel blur radius would allocate hundreds of GiB); severity 0 is the identity, so
+#: "no noise" is never spelled as an infinite SNR.
+PARAM_DOMAINS: dict[str, tuple[float, float]] = {
+    # audio
+    "snr_db": (-60.0, 120.0), "min_snr_db": (-60.0, 120.0), "max_snr_db": (-60.0, 120.0), "p": (0.0, 1.0),
+    "low_cut_hz": (0.0, 96000.0), "high_cut_hz": (1.0, 96000.0), "drop_fraction": (0.0, 1.0),
+    "gap_ms": (0.1, 10000.0), "gain_db": (-60.0, 60.0), "clip_level": (1e-6, 1e6), "gust_hz": (0.0, 100.0),
+    "cutoff_hz": (1.0, 96000.0),
+    # cross-modal
+    "dt_s": (0.0, 60.0), "direction": (-1.0, 1.0), "rate_ratio": (0.05, 20.0), "shift_px": (0.0, 4096.0),
+    "rot_deg": (-180.0, 180.0), "scale_delta": (-0.5, 0.5),
+    # rf
+    "bits": (1.0, 24.0), "clip_rms": (0.01, 1000.0), "k_factor": (0.0, 1e12), "delay_spread": (0.0, 64.0),
+    "n_taps": (1.0, 64.0), "offset_norm": (-0.5, 0.5), "drift_norm": (-0.5, 0.5), "amp_db": (-20.0, 20.0),
+    "phase_deg": (-90.0, 90.0), "attenuation_db": (0.0, 200.0), "noise_floor_db": (-50.0, 200.0),
+    "mask_fraction": (0.0, 1.0), "n_masks": (0.0, 100.0), "sir_db": (-60.0, 120.0), "n_carriers": (1.0, 100.0),
+    "burst_fraction": (0.0, 1.0), "duty": (0.0, 1.0), "bandwidth_frac": (0.0, 1.0), "burst_frac": (0.0, 1.0),
+    # thermal
+    "hot_k": (0.0, 5000.0), "size_frac": (0.0, 1.0), "sigma_px": (0.0, 100.0), "halo": (0.0, 10.0),
+    "strength": (0.0, 1.0), "ring_px": (0.0, 256.0), "fraction": (0.0, 1.0), "size_px": (0.0, 512.0),
+    "contrast_k": (-200.0, 200.0), "gain_std": (0.0, 1.0), "offset_std_k": (0.0, 50.0), "ref_k": (1.0, 1000.0),
+    "netd_k": (0.0, 10.0),
+    # video
+    "qscale": (0.0, 100.0), "gop": (1.0, 1000.0), "p_qscale_factor": (0.01, 100.0), "radius_px": (0.0, 256.0),
+    "beta_per_m": (0.0, 10.0), "airlight": (0.0, 1.0), "default_range_m": (0.0, 1e6), "drop_prob": (0.0, 1.0),
+    "freeze_fraction": (0.0, 1.0), "sigma": (0.0, 5.0), "amount": (0.0, 1.0), "quality": (1.0, 100.0),
+    "n_spots": (0.0, 1000.0), "opacity": (0.0, 1.0), "exposure": (0.0, 100.0), "read_sigma": (0.0, 5.0),
+    "gamma": (0.05, 20.0), "length_px": (1.0, 256.0), "density": (0.0, 1.0), "brightness": (0.0, 5.0),
+    "factor": (1.0, 64.0), "photons": (1e-3, 1e9), "coverage": (0.0, 1.0), "colour": (0.0, 1.0),
+    "intensity": (0.0, 10.0), "radius_frac": (1e-3, 10.0), "veil": (0.0, 1.0),
+}
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    text = repr(value) if isinstance(value, (int, float, str, bool, type(None))) else type(value).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def _jsonable(v: Any) -> Any:
     if isinstance(v, (np.floating,)):
         return float(v)
@@ -94,6 +134,8 @@ class Degradation:
     identity: ClassVar[dict[str, float]] = {}
     #: extra (non-table) parameters accepted by the constructor, with defaults
     extra: ClassVar[dict[str, Any]] = {}
+    #: per-class parameter domains [lo, hi] overriding :data:`PARAM_DOMAINS`
+    domains: ClassVar[dict[str, tuple[float, float]]] = {}
     #: integer-valued table params (rounded after interpolation)
     integer_params: ClassVar[tuple[str, ...]] = ()
     #: does the transform draw random numbers at all?
@@ -119,7 +161,7 @@ class Degradation:
         unknown = sorted(set(params) - allowed)
         if unknown:
             raise DegradationError(
-                f"{self.name}: unknown parameter(s) {unknown}; allowed: {sorted(allowed)}")
+                f"{self.name}: unknown parameter(s) {', '.join(_short(u) for u in unknown[:10])}; allowed: {sorted(allowed)}")
         temporal = temporal or self.default_temporal
         if temporal not in TEMPORAL_MODES:
             raise DegradationError(f"{self.name}: temporal must be one of {TEMPORAL_MODES}, got {temporal!r}")
@@ -131,10 +173,17 @@ class Degradation:
 
     # -- parameters -------------------------------------------------------------------------
     def check_param(self, key: str, value: Any) -> None:
-        """Validate one explicit parameter (subclasses extend); raises DegradationError naming it."""
-        if key in self.table:
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(float(value)):
-                raise DegradationError(f"{self.name}: parameter {key} must be a number, got {value!r}")
+        """Validate one explicit parameter against its domain (:data:`PARAM_DOMAINS`, or the class's
+        ``domains``); subclasses extend. Raises DegradationError naming the parameter and range."""
+        domain = self.domains.get(key, PARAM_DOMAINS.get(key))
+        if key in self.table or domain is not None:
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                    or not math.isfinite(float(value)):
+                raise DegradationError(f"{self.name}: parameter {key} must be a finite number, got {_short(value)}")
+        if domain is not None:
+            lo, hi = domain
+            if not lo <= float(value) <= hi:
+                raise DegradationError(f"{self.name}: parameter {key} must be in [{lo:g}, {hi:g}], got {_short(value)}")
 
     def level_params(self, severity: float) -> dict[str, Any]:
         """Table values at a continuous severity."""

@@ -19,7 +19,7 @@ Severity = Annotated[float, Field(ge=0.0, le=5.0)]
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class Event(_Model):

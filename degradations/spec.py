@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from degradations.base import DEFAULT_LEVEL, MODALITIES, PER_FRAME_KEYS, make_rng
@@ -41,7 +40,7 @@ def default_stream(name: str, params: dict | None = None) -> str:
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class DegradationEntry(_Model):
@@ -129,24 +128,40 @@ def parse_spec(data: Any) -> DegradationSpec:
     try:
         return DegradationSpec.model_validate(data)
     except ValidationError as exc:
+        from scenes.errors import short_repr
+
         lines = []
-        for err in exc.errors():
+        errors = exc.errors(include_url=False)
+        for err in errors[:20]:
             loc = tuple(p for p in err["loc"] if p not in ("constant", "step", "ramp", "random"))
-            lines.append(f"{_loc(loc)}: {err['msg'].removeprefix('Value error, ')} (got {err.get('input')!r})")
+            lines.append(f"{_loc(loc)}: {err['msg'].removeprefix('Value error, ')} (got {short_repr(err.get('input'))})")
+        if len(errors) > 20:
+            lines.append(f"... and {len(errors) - 20} more problem(s)")
         raise SpecError("invalid degradation spec: " + "; ".join(lines)) from None
 
 
 def load_spec(path: str | Path) -> DegradationSpec:
     """Read and validate a YAML or JSON spec file."""
+    from scenes.errors import UserInputError
+    from scenes.yaml_safe import MAX_BYTES, load_yaml
+
     p = Path(path)
     try:
+        if p.stat().st_size > MAX_BYTES:
+            raise SpecError(f"spec {str(p)!r} is larger than {MAX_BYTES} bytes; not a degradation spec")
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise SpecError(f"cannot read spec {str(p)!r}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"spec {str(p)!r} is not UTF-8 text (byte {exc.start})") from None
     try:
-        data = json.loads(text) if p.suffix.lower() == ".json" else yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        raise SpecError(f"spec {str(p)!r} is not valid {'JSON' if p.suffix.lower() == '.json' else 'YAML'}: {exc}") from None
+        data = json.loads(text) if p.suffix.lower() == ".json" else load_yaml(text, f"spec {str(p)!r}")
+    except json.JSONDecodeError as exc:
+        raise SpecError(f"spec {str(p)!r} is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise SpecError(f"spec {str(p)!r} is nested too deeply to read") from None
+    except UserInputError as exc:
+        raise SpecError(str(exc)) from None
     if not isinstance(data, dict):
         raise SpecError(f"spec {str(p)!r}: top level must be a mapping, got {type(data).__name__}")
     return parse_spec(data)
@@ -212,8 +227,14 @@ def _slice_meta(view: dict, a: int, b: int, n: int, stream: str) -> dict:
     return sub
 
 
+def frame_local(spec: DegradationSpec) -> bool:
+    """True if every entry acts on each frame alone (no retiming, no clip-long tracks), so the spec
+    may be applied frame by frame (``apply_spec(..., frame_offset=i)``) in constant memory."""
+    return all(not get(e["name"]).needs_clip and not get(e["name"]).changes_meta for e in spec.entries())
+
+
 def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed: int,
-               t_s: Any) -> tuple[dict[str, Any], dict]:
+               t_s: Any, frame_offset: int = 0) -> tuple[dict[str, Any], dict]:
     """Apply a spec to one sample's streams on the record clock ``t_s`` (K row times, s).
 
     streams: "rgb" (T, H, W, 3), "thermal" (T, H, W) K, "audio" (N,), "rf_iq" (N,) complex,
@@ -221,8 +242,11 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
     (``thermal_mask``, ``rgb_boxes``, ``audio_sample_rate_hz``, ``rgb_fps`` ...). Each entry's
     schedule is evaluated per element, quantised to ``spec.severity_quantum`` and applied on runs
     of equal severity. Randomness: static entries use SeedSequence([seed, crc('<name>#<k>'), 0]) (k-th use of that name)
-    for every run, per-frame entries add the run start + 1. Returns (streams, record).
+    for every run, per-frame entries add the run start + 1 (+ ``frame_offset``: the index of the
+    first element in a longer stream processed in pieces). Returns (streams, record).
     """
+    if isinstance(frame_offset, bool) or not isinstance(frame_offset, (int, np.integer)) or frame_offset < 0:
+        raise SpecError(f"frame_offset must be a non-negative int, got {frame_offset!r}")
     if not isinstance(spec, DegradationSpec):
         raise SpecError(f"spec must be a DegradationSpec (use load_spec/parse_spec), got {type(spec).__name__}")
     unknown = sorted(set(streams) - set(MODALITIES))
@@ -275,7 +299,7 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
         shown = None
         for a, b, s in _runs(sevq):
             deg = cls(s, temporal=e["temporal"], **e["params"])
-            rng = make_rng(seed, key, 0 if static else a + 1)
+            rng = make_rng(seed, key, 0 if static else a + 1 + int(frame_offset))
             sub = _slice_meta(view, a, b, n, stream)
             part = np.take(x, np.arange(a, b), axis=ax)
             params = deg.sample_params(rng, sub)

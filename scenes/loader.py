@@ -7,11 +7,13 @@ from typing import Any, TypeVar
 import yaml
 from pydantic import BaseModel, ValidationError
 
-from scenes.errors import UserInputError
+from scenes.errors import UserInputError, short_repr
 from scenes.schema import Scenario
+from scenes.yaml_safe import load_yaml_file
 
 LIBRARY_DIR = Path(__file__).with_name("library")
 GENERATION_DIR = Path(__file__).with_name("generation")
+MAX_ERROR_LINES = 20
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
 
@@ -22,14 +24,16 @@ def preset_names() -> list[str]:
 def format_validation_error(exc: ValidationError, source: str) -> str:
     """One line per problem: `source: field.path: message (got value)`."""
     lines = []
-    for err in exc.errors():
+    errors = exc.errors(include_url=False)
+    for err in errors[:MAX_ERROR_LINES]:
         loc = ".".join(str(p) for p in err["loc"]) or "<root>"
         if err["type"] == "missing":
             lines.append(f"{source}: {loc}: {err['msg']}")
             continue
-        got = err.get("input")
-        got_text = repr(got) if len(repr(got)) < 80 else repr(got)[:77] + "..."
+        got_text = short_repr(err.get("input"))
         lines.append(f"{source}: {loc}: {err['msg']} (got {got_text})")
+    if len(errors) > MAX_ERROR_LINES:
+        lines.append(f"{source}: ... and {len(errors) - MAX_ERROR_LINES} more problem(s)")
     return "\n".join(lines)
 
 
@@ -58,11 +62,7 @@ def load_validated(path_or_name: str | Path | dict, model: type[ModelT], library
     if not path.is_file():
         hint = f"; presets: {', '.join(names)}" if names else ""
         raise UserInputError(f"{kind} file {text_arg!r} does not exist{hint}")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise UserInputError(f"{path}: not valid YAML: {exc}") from None
-    return validate_mapping(model, data, str(path))
+    return validate_mapping(model, load_yaml_file(path), str(path))
 
 
 def scenario_from_dict(data: Any, source: str = "<scenario>") -> Scenario:

@@ -23,7 +23,16 @@ RGB = tuple[
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # allow_inf_nan=False: NaN/inf in any float field is refused at validation (not in the renderer)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+#: a name used as one path component (scene names become output folder names)
+PLAIN_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,127}$"
+PlainName = Annotated[str, Field(pattern=PLAIN_NAME_PATTERN, min_length=1, max_length=128,
+                                 description="letters, digits and ._+- (not starting with . or -): used as a folder name")]
+#: the radiometric counts' ceiling must sit this far above the hottest planned temperature
+THERMAL_HEADROOM_K = 20.0
 
 
 class Material(_Model):
@@ -267,12 +276,20 @@ class CameraRig(_Model):
     def _pointing(self) -> "CameraRig":
         if (self.look_at_m is None) == (self.track_target is None):
             raise ValueError("give exactly one of look_at_m (fixed camera) or track_target (pan/tilt)")
+        if self.look_at_m is not None:
+            d = [a - b for a, b in zip(self.look_at_m, self.position_m)]
+            length = sum(v * v for v in d) ** 0.5
+            if length < 1e-3:
+                raise ValueError(f"look_at_m {list(self.look_at_m)} is the camera position: the camera would see nothing")
+            if (d[0] ** 2 + d[1] ** 2) ** 0.5 < 1e-3 * length:
+                raise ValueError(f"look_at_m {list(self.look_at_m)} is straight above/below position_m "
+                                 f"{list(self.position_m)}: the camera's up direction is undefined (tilt it slightly)")
         return self
 
 
 class Scenario(_Model):
     schema_version: Literal[1] = SCHEMA_VERSION
-    name: str = Field(min_length=1)
+    name: PlainName
     description: str = ""
     duration_s: float = Field(gt=0.0, le=3600.0)
     frame_rate_hz: float = Field(default=30.0, gt=0.0, le=240.0)
@@ -290,6 +307,37 @@ class Scenario(_Model):
         track = self.camera_rig.track_target
         if track is not None and track not in names:
             raise ValueError(f"camera_rig.track_target {track!r} is not a target name; targets: {names}")
+        return self
+
+    @model_validator(mode="after")
+    def _thermal_range(self) -> "Scenario":
+        """Refuse a thermal scale whose ceiling ((2^adc_bits - 1) x kelvin_per_count) would clip the hottest
+        planned temperature: clipped counts would erase the target and fake a thermal crossover."""
+        kpc = self.camera_rig.thermal.kelvin_per_count
+        counts_max = 2 ** getattr(self.camera_rig.thermal, "adc_bits", 16) - 1
+        hottest, where = self.atmosphere.air_temperature_k, "atmosphere.air_temperature_k"
+        for t in self.targets:
+            th = t.thermal
+            candidates: dict[str, float] = {}
+            if th.mode == "absolute":
+                candidates.update({f"targets[{t.name}].thermal.absolute_k.{r}": v for r, v in th.absolute_k.items()})
+            elif th.mode == "offset":
+                for label, offsets in (("offsets_k", th.offsets_k), ("offsets_end_k", th.offsets_end_k or {})):
+                    candidates.update({f"targets[{t.name}].thermal.{label}.{r}": self.atmosphere.air_temperature_k + v
+                                       for r, v in offsets.items()})
+            else:
+                top = max(th.contrast_k, th.contrast_end_k if th.contrast_end_k is not None else th.contrast_k)
+                candidates[f"targets[{t.name}].thermal.contrast_k"] = self.atmosphere.air_temperature_k + top
+            for label, value in candidates.items():
+                if value > hottest:
+                    hottest, where = value, label
+        ceiling = counts_max * kpc
+        if ceiling < hottest + THERMAL_HEADROOM_K:
+            need = (hottest + THERMAL_HEADROOM_K) / counts_max
+            raise ValueError(
+                f"camera_rig.thermal.kelvin_per_count {kpc:g} puts the counts' ceiling ({counts_max}) at {ceiling:.1f} K, below the "
+                f"hottest planned temperature {hottest:.1f} K ({where}) + {THERMAL_HEADROOM_K:g} K headroom: every "
+                f"hot pixel would clip; use kelvin_per_count >= {need:.3g}")
         return self
 
     @property

@@ -7,13 +7,17 @@ safety: a file or folder appears under its final name only when complete.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import platform
+import re
+import secrets
 import shutil
+import socket
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
-from typing import Iterator
+from typing import Iterable, Iterator
 
 HASH_FILE = "files.sha256"
 
@@ -21,7 +25,7 @@ HASH_FILE = "files.sha256"
 def write_atomic(path: Path, data: str | bytes) -> None:
     """Write via a temporary sibling and rename (no half-written file on failure)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp = path.with_name(f".{path.name}.tmp-{run_id()}")
     if isinstance(data, bytes):
         tmp.write_bytes(data)
     else:
@@ -32,8 +36,13 @@ def write_atomic(path: Path, data: str | bytes) -> None:
 def hash_tree(folder: Path) -> dict[str, str]:
     """sha256 of every file under folder (except the hash file), keyed by posix relative path."""
     out = {}
-    for path in sorted(p for p in folder.rglob("*") if p.is_file() and p.name != HASH_FILE):
-        out[path.relative_to(folder).as_posix()] = hashlib.sha256(path.read_bytes()).hexdigest()
+    for path in sorted(folder.rglob("*")):
+        if path.name in BOOKKEEPING:
+            continue
+        if path.is_symlink():  # never followed: a link is recorded as what it is, so verify flags it
+            out[path.relative_to(folder).as_posix()] = f"symlink:{os.readlink(path)}"
+        elif path.is_file():
+            out[path.relative_to(folder).as_posix()] = hashlib.sha256(path.read_bytes()).hexdigest()
     return out
 
 
@@ -64,31 +73,324 @@ def verify_hashes(folder: Path) -> list[str]:
     return sorted(rel for rel in set(listed) | set(actual) if listed.get(rel) != actual.get(rel))
 
 
+# --------------------------------------------------------------------------------------------
+# The safe-output rule (docs/RELIABILITY.md): every command's output folder is created new, or is
+# one evids wrote (it holds MARKER_FILE, or is a recognised evids dataset/sequence/run) and the
+# command was asked to replace it; never the input, an ancestor or descendant of it, or ".".
+# --------------------------------------------------------------------------------------------
+
+MARKER_FILE = ".evids-output.json"
+LOCK_FILE = ".evids.lock"
+#: files that are bookkeeping, not content (never hashed, never counted as "user files")
+BOOKKEEPING = (HASH_FILE, MARKER_FILE, LOCK_FILE)
+_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,127}$")
+
+
+def _host_tag() -> str:
+    return hashlib.sha256(socket.gethostname().encode()).hexdigest()[:8]
+
+
+#: id of this process's run: pid, host hash and a random token (temp folders carry it)
+RUN_ID = f"r{os.getpid()}-{_host_tag()}-{secrets.token_hex(3)}"
+_TEMP_RE = re.compile(r"^\.(?:tmp|old|native)-(?P<name>.+)-r(?P<pid>\d+)-(?P<host>[0-9a-f]{8})-(?P<token>[0-9a-f]{6})$")
+
+
+def run_id() -> str:
+    """This process's run id (recomputed after fork so a child never reuses its parent's)."""
+    global RUN_ID
+    if not RUN_ID.startswith(f"r{os.getpid()}-"):
+        RUN_ID = f"r{os.getpid()}-{_host_tag()}-{secrets.token_hex(3)}"
+    return RUN_ID
+
+
+def check_plain_name(name: str, field: str) -> str:
+    """A name used as one path component: letters, digits, ``._+-``, not starting with a dot or
+    dash, at most 128 characters (no separators, no ``..``, not absolute). Returns it."""
+    from scenes.errors import UserInputError, short_repr
+
+    if not isinstance(name, str) or not _NAME_RE.match(name) or name in (".", ".."):
+        raise UserInputError(f"{field}: must be a plain name (letters, digits, '._+-', not starting with '.' "
+                             f"or '-', at most 128 characters), got {short_repr(name)}")
+    return name
+
+
+def inside(child: Path, root: Path) -> Path:
+    """``child`` resolved, refused unless it lies inside ``root`` (resolved): for paths built from
+    names taken from inputs."""
+    from scenes.errors import UserInputError
+
+    c, r = Path(child).resolve(), Path(root).resolve()
+    if c != r and r not in c.parents:
+        raise UserInputError(f"{child}: resolves to {c}, outside the output folder {r}")
+    return c
+
+
+def is_evids_output(folder: Path) -> bool:
+    """True if ``folder`` was written by evids: it holds the marker, or it is a native dataset,
+    native sequence, TRIDENT set or run folder in the layouts this project writes."""
+    folder = Path(folder)
+    if (folder / MARKER_FILE).is_file() or (folder / LOCK_FILE).is_file():
+        return True
+    manifest = folder / "manifest.json"
+    if manifest.is_file():
+        try:
+            fmt = json.loads(manifest.read_text()).get("format")
+        except (ValueError, OSError, AttributeError):
+            return False
+        return fmt in ("evids-native-dataset", "trident") and (folder / "manifest.json").is_file()
+    if (folder / "config.yaml").is_file() and (folder / "run.json").is_file():
+        return True  # an experiment run folder
+    return (folder / "meta.json").is_file() and (folder / HASH_FILE).is_file()
+
+
+def _is_empty_dir(folder: Path) -> bool:
+    """No entries besides evids' own bookkeeping (a lock or marker left by a killed run)."""
+    return folder.is_dir() and not folder.is_symlink() and all(c.name in (LOCK_FILE, MARKER_FILE) for c in folder.iterdir())
+
+
+def _overlaps(a: Path, b: Path) -> bool:
+    return a == b or a in b.parents or b in a.parents
+
+
+def check_output(out: Path, *, inputs: Iterable[Path] = (), overwrite: bool = False, flag: str = "--out",
+                 allow_resume: bool = False) -> None:
+    """The safe-output rule, checked before any work starts; raises UserInputError saying why.
+
+    ``out`` may be missing or an empty folder; otherwise it must be an evids output and either
+    ``overwrite`` is set or ``allow_resume`` (a run/dataset the command continues). It may never be
+    the current folder, a filesystem root or the home folder, nor overlap any of ``inputs``."""
+    from scenes.errors import UserInputError
+
+    raw = Path(out)
+    resolved = raw.resolve()
+    cwd = Path.cwd().resolve()
+    if resolved == cwd or resolved in cwd.parents:
+        raise UserInputError(f"{flag} {str(raw)!r} is the current folder or one of its parents; give a new sub-folder")
+    if resolved == Path(resolved.anchor) or resolved == Path.home().resolve():
+        raise UserInputError(f"{flag} {str(raw)!r} is a root or home folder; give a new sub-folder")
+    check_no_overlap(raw, inputs, flag)
+    if raw.is_symlink():
+        raise UserInputError(f"{flag} {str(raw)!r} is a symbolic link; give a real folder")
+    if not raw.exists() or _is_empty_dir(raw):
+        return
+    if not raw.is_dir():
+        raise UserInputError(f"{flag} {str(raw)!r} exists and is not a folder")
+    if not is_evids_output(raw):
+        raise UserInputError(f"{flag} {str(raw)!r} is not empty and was not written by evids; nothing was changed "
+                             "(choose a new folder)")
+    if not (overwrite or allow_resume):
+        raise UserInputError(f"{flag} {str(raw)!r} already holds evids output; use --overwrite to replace it")
+
+
+def check_no_overlap(out: Path, inputs: Iterable[Path], flag: str = "--out") -> None:
+    """Refuse an output folder that is, contains or lies inside any input (UserInputError)."""
+    from scenes.errors import UserInputError
+
+    resolved = Path(out).resolve()
+    for inp in inputs:
+        inp_r = Path(inp).resolve()
+        if _overlaps(resolved, inp_r):
+            rel = "is" if resolved == inp_r else ("contains" if resolved in inp_r.parents else "is inside")
+            raise UserInputError(f"{flag} {str(out)!r} {rel} the input {str(inp)!r}; write somewhere else")
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def clean_dead_temps(parent: Path, name: str | None = None) -> list[Path]:
+    """Remove hidden temp/old folders under ``parent`` (for ``name`` only, if given) whose owning
+    run is dead (same host, pid gone); a live run's temporaries are never touched. Returns them."""
+    removed = []
+    parent = Path(parent)
+    if not parent.is_dir():
+        return removed
+    for child in parent.iterdir():
+        m = _TEMP_RE.match(child.name)
+        if not m or (name is not None and m.group("name") != name):
+            continue
+        if m.group("host") != _host_tag() or _pid_alive(int(m.group("pid"))):
+            continue
+        _remove(child)
+        removed.append(child)
+    return removed
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)
+
+
+def temp_sibling(final: Path, kind: str = "tmp") -> Path:
+    """Hidden sibling of ``final`` carrying this run's id: ``.tmp-<name>-<run id>``."""
+    return Path(final).parent / f".{kind}-{Path(final).name}-{run_id()}"
+
+
+def write_marker(folder: Path, kind: str) -> None:
+    """Mark ``folder`` as written by evids (``kind``: what wrote it); deterministic content."""
+    (Path(folder) / MARKER_FILE).write_text(json.dumps({"written_by": "evids", "kind": kind}, sort_keys=True) + "\n")
+
+
 @contextmanager
-def atomic_folder(final: Path, *, overwrite: bool = True) -> Iterator[Path]:
-    """Yield a temporary sibling folder; on success rename it to ``final`` (replacing it if
-    ``overwrite``); on any error remove it and leave ``final`` untouched."""
+def atomic_folder(final: Path, *, overwrite: bool = False, kind: str | None = None) -> Iterator[Path]:
+    """Yield a temporary sibling folder (named with this run's id); on success mark it (if ``kind``
+    is given: a command's published output, not a folder inside a public-format layout) and rename
+    it to ``final``; on any error remove it and leave ``final`` untouched.
+
+    An existing ``final`` is replaced only if ``overwrite`` and it is empty or an evids output
+    (:func:`is_evids_output`); otherwise FileExistsError (before any work, and again at the rename).
+    Dead runs' temporaries of the same ``final`` are removed first."""
     final = Path(final)
+    _check_replaceable(final, overwrite)
     final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = final.parent / f".tmp-{final.name}-{os.getpid()}"
+    clean_dead_temps(final.parent, final.name)
+    tmp = temp_sibling(final)
     if tmp.exists():
         shutil.rmtree(tmp)
     tmp.mkdir()
     try:
         yield tmp
+        if kind is not None:
+            write_marker(tmp, kind)
+        _check_replaceable(final, overwrite)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    if final.exists():
-        if not overwrite:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise FileExistsError(f"{final} already exists")
-        old = final.parent / f".old-{final.name}-{os.getpid()}"
+    if final.exists() or final.is_symlink():
+        old = temp_sibling(final, "old")
         final.rename(old)
         tmp.rename(final)
         shutil.rmtree(old, ignore_errors=True)
     else:
         tmp.rename(final)
+
+
+def _check_replaceable(final: Path, overwrite: bool) -> None:
+    if not (final.exists() or final.is_symlink()):
+        return
+    if final.is_symlink() or not final.is_dir():
+        raise FileExistsError(f"{final} exists and is not a folder evids wrote; not replaced")
+    if _is_empty_dir(final):
+        return
+    if not is_evids_output(final):
+        raise FileExistsError(f"{final} holds files evids did not write; not replaced")
+    if not overwrite:
+        raise FileExistsError(f"{final} already exists (ask for --overwrite to replace it)")
+
+
+def remove_output(folder: Path) -> None:
+    """Delete ``folder`` only if it is an evids output (or absent/empty); otherwise FileExistsError."""
+    folder = Path(folder)
+    if not (folder.exists() or folder.is_symlink()):
+        return
+    _check_replaceable(folder, overwrite=True)
+    shutil.rmtree(folder)
+
+
+def copy_tree_no_symlinks(src: Path, dst: Path, *, skip: Iterable[str] = ()) -> None:
+    """Copy regular files and folders of ``src`` into ``dst``; a symbolic link anywhere is refused
+    (never followed), so no byte from outside ``src`` can enter the copy."""
+    from scenes.errors import UserInputError
+
+    src, dst = Path(src), Path(dst)
+    skip = set(skip)
+    for root, dirs, files in os.walk(src, followlinks=False):
+        rel = Path(root).relative_to(src)
+        for name in dirs + files:
+            path = Path(root) / name
+            if path.is_symlink():
+                raise UserInputError(f"{path}: is a symbolic link; evids does not follow links in an input folder")
+        (dst / rel).mkdir(parents=True, exist_ok=True)
+        for name in files:
+            if (rel / name).as_posix() in skip or name in (MARKER_FILE, LOCK_FILE):
+                continue
+            shutil.copy2(Path(root) / name, dst / rel / name, follow_symlinks=False)
+
+
+# --------------------------------------------------------------------------------------------
+# Dataset lock: one writer per dataset folder
+# --------------------------------------------------------------------------------------------
+
+class DatasetLock:
+    """Exclusive lock on a dataset folder: ``DIR/.evids.lock`` holding pid, host and run id, kept
+    with an OS-level ``flock`` for the lifetime of the run (released when the process dies, even by
+    SIGKILL). A second writer refuses with the holder's pid/host; a lock file left by a dead run is
+    detected, reported in ``stale`` and taken over."""
+
+    def __init__(self, folder: Path, purpose: str = "write", *, required: bool = True):
+        """``required=False`` (readers such as export): a folder where no lock file can be created
+        (read-only media) is used unlocked, since no writer can change it either."""
+        self.required = required
+        self.folder = Path(folder)
+        self.path = self.folder / LOCK_FILE
+        self.purpose = purpose
+        self.stale: dict | None = None
+        self._fd: int | None = None
+
+    def acquire(self) -> "DatasetLock":
+        import fcntl
+
+        from scenes.errors import UserInputError
+
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError:
+            if self.required:
+                raise
+            return self
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _read_lock(fd)
+            os.close(fd)
+            raise UserInputError(
+                f"{self.folder} is locked by another evids run (pid {holder.get('pid', '?')} on host "
+                f"{holder.get('host', '?')}, {holder.get('purpose', 'write')}); wait for it to finish") from None
+        previous = _read_lock(fd)
+        if previous:
+            self.stale = previous
+        info = {"pid": os.getpid(), "host": socket.gethostname(), "run_id": run_id(), "purpose": self.purpose}
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, (json.dumps(info, sort_keys=True) + "\n").encode(), 0)
+        os.fsync(fd)
+        self._fd = fd
+        return self
+
+    def release(self) -> None:
+        import fcntl
+
+        if self._fd is None:
+            return
+        try:
+            os.ftruncate(self._fd, 0)
+            self.path.unlink(missing_ok=True)
+        finally:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> "DatasetLock":
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def _read_lock(fd: int) -> dict:
+    try:
+        text = os.pread(fd, 4096, 0).decode("utf-8", "replace").strip()
+        return json.loads(text) if text else {}
+    except ValueError:
+        return {"pid": "?", "host": "?", "note": "unreadable lock file"}
 
 
 RENDER_PACKAGES = ("evids", "mitsuba", "drjit", "numpy", "colour-science", "opencv-python-headless")

@@ -43,12 +43,24 @@ def main(argv: list[str] | None = None) -> None:
 
     _register_all()
     debug = bool(os.environ.get("EVIDS_DEBUG"))
+    from degradations.errors import DegradationError
+
     try:
         app(args=argv, standalone_mode=True)
-    except UserInputError as exc:
+    except (UserInputError, DegradationError) as exc:
         if debug:
             raise
-        typer.echo(f"error: {exc}", err=True)
+        typer.echo(f"error: {_bounded(str(exc))}", err=True)
+        sys.exit(2)
+    except FileExistsError as exc:  # the safe-output rule refused to replace something
+        if debug:
+            raise
+        typer.echo(f"error: {_bounded(str(exc))}", err=True)
+        sys.exit(2)
+    except RecursionError:
+        if debug:
+            raise
+        typer.echo("error: input nested too deeply to process", err=True)
         sys.exit(2)
     except OSError as exc:
         if debug:
@@ -58,3 +70,11 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         typer.echo("interrupted", err=True)
         sys.exit(130)
+
+
+MAX_MESSAGE_CHARS = 4000
+
+
+def _bounded(text: str) -> str:
+    """Error text cut to MAX_MESSAGE_CHARS (a message never reproduces a huge input)."""
+    return text if len(text) <= MAX_MESSAGE_CHARS else text[: MAX_MESSAGE_CHARS - 20] + " ... (truncated)"

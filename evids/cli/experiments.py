@@ -11,6 +11,16 @@ from scenes.errors import UserInputError
 _STUDIES = ("degradation", "conflict", "gate")
 
 
+def _run_lock(run: Path, purpose: str):
+    """The run folder's writer lock (a second evaluate/sweep on the same run refuses); taken only
+    on a real run folder, so nothing is written into a folder that is not one."""
+    from simulator.files import DatasetLock
+
+    if not (Path(run) / "config.yaml").is_file():
+        raise UserInputError(f"{str(run)!r} is not a run folder (no config.yaml); run `evids train` first")
+    return DatasetLock(run, purpose)
+
+
 def train(
     config: Path = typer.Option(..., "--config", "-c", help="Experiment config YAML (see examples/experiment.yaml)."),
     out: Path = typer.Option(..., "--out", "-o", help="Run folder (created; a generated dataset is cached in it)."),
@@ -23,9 +33,15 @@ def train(
     """
     from evids.experiments import load_experiment_config
     from evids.experiments.runner import stage_train
+    from simulator.files import DatasetLock, check_output, write_marker
 
-    cfg = load_experiment_config(config)
-    stage_train(cfg, out, progress)
+    cfg = load_experiment_config(config)  # validated in full (evids.experiments.validate) before any work
+    inputs = [config] + ([Path(cfg.dataset.path)] if cfg.dataset.path else [])
+    check_output(out, inputs=inputs, allow_resume=True)
+    out.mkdir(parents=True, exist_ok=True)
+    write_marker(out, "run")
+    with DatasetLock(out, "train"):  # one writer per run folder
+        stage_train(cfg, out, progress)
     typer.echo(f"trained: {out / 'models.pt'}")
 
 
@@ -37,9 +53,10 @@ def evaluate(
     (writes evaluate.json, conditions.csv, bootstrap.csv, predictions.npz, figures/examples.png)."""
     from evids.experiments.runner import open_run, stage_evaluate, stage_examples
 
-    ctx = open_run(run, progress)
-    stage_evaluate(ctx)
-    stage_examples(ctx)
+    with _run_lock(run, "evaluate"):
+        ctx = open_run(run, progress)
+        stage_evaluate(ctx)
+        stage_examples(ctx)
     typer.echo(f"evaluated: {run / 'conditions.csv'}")
 
 
@@ -61,10 +78,11 @@ def sweep(
     bad = [k for k in kinds if k not in _STUDIES]
     if bad or not kinds:
         raise UserInputError(f"--only: unknown study {bad or only!r}; choose from {', '.join(_STUDIES)}")
-    ctx = open_run(run, progress)
-    for kind in kinds:
-        {"degradation": stage_sweep, "conflict": stage_conflict, "gate": stage_gate}[kind](ctx)
-        typer.echo(f"{kind}: done")
+    with _run_lock(run, "sweep"):
+        ctx = open_run(run, progress)
+        for kind in kinds:
+            {"degradation": stage_sweep, "conflict": stage_conflict, "gate": stage_gate}[kind](ctx)
+            typer.echo(f"{kind}: done")
 
 
 def report(run: Path = typer.Argument(..., help="A run folder after `evids evaluate` (and optionally `sweep`).")) -> None:
@@ -93,8 +111,13 @@ def demo(
         typer.echo(f"report: {run_detection_demo(out, typer.echo)}")
         return
     from evids.experiments import run_demo
+    from simulator.files import DatasetLock, check_output, write_marker
 
-    times = run_demo(out, quick=quick, progress=progress, log=typer.echo)
+    check_output(out, allow_resume=True)
+    out.mkdir(parents=True, exist_ok=True)
+    write_marker(out, "run")
+    with DatasetLock(out, "demo"):
+        times = run_demo(out, quick=quick, progress=progress, log=typer.echo)
     typer.echo(f"total: {sum(times.values()):.1f} s")
     typer.echo(f"report: {out / 'report.html'}")
 

@@ -53,6 +53,9 @@ def generate(
             raise UserInputError("--format trident takes --clips, --seed and --quiet only (not --sequences, --frames, "
                                  "--workers, --executor or --overwrite)")
 
+        from simulator.files import check_output
+
+        check_output(out, inputs=[Path(config)] if Path(config).is_file() else [])
         try:
             path = generate_trident(config, out, seed, n_clips=clips, progress=not quiet)
         except ValueError as exc:
@@ -75,6 +78,8 @@ def generate(
     except KeyboardInterrupt:
         typer.echo("interrupted: finished sequences are kept; run the same command again to resume", err=True)
         raise typer.Exit(130) from None
+    for note in result.notes:
+        typer.echo(f"note: {note}", err=True)
     typer.echo(f"native: {result.out_dir} ({len(result.rendered)} rendered, {len(result.skipped)} already complete)")
     for kind, path in result.exports.items():
         typer.echo(f"{kind}: {path}")
@@ -101,6 +106,7 @@ def export(
     test_fraction: float = typer.Option(0.2, "--test-fraction", min=0.0, max=0.99, help="trident: share of clips "
                                         "per class in Test/ (the rest in Train/)."),
     shard_mb: float = typer.Option(500.0, "--shard-mb", min=0.001, help="webdataset: start a new shard past this size."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace an export an earlier `evids export` wrote."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
 ) -> None:
     """Export a dataset to benchmark layouts (Anti-UAV, MM-UAV, COCO-video, TRIDENT, WebDataset); docs/FORMATS.md.
@@ -116,16 +122,23 @@ def export(
         raise UserInputError(f"--format: unknown format(s) {bad or [fmt]}; valid: {', '.join(sorted(valid))}")
     if distractors_as not in ("class", "file"):
         raise UserInputError(f"--distractors-as must be 'class' or 'file', got {distractors_as!r}")
+    from simulator.dataset.generate import export_inputs
+    from simulator.files import check_output
+
+    targets = {f: (out if len(formats) == 1 else out / f) if out is not None else dataset / f
+               for f in dict.fromkeys(formats)}
+    for f, target in targets.items():  # all refused before any is written
+        if (dataset / "manifest.json").is_file():
+            check_output(target, inputs=export_inputs(dataset, target), overwrite=overwrite)
     mode: bool | str | None = distractors
     for f in dict.fromkeys(formats):
         if f == "mot":
             mode = distractors_as if distractors else "none"
         elif f == "coco":
             mode = distractors
-        target = (out if len(formats) == 1 else out / f) if out is not None else dataset / f
-        path = export_dataset(dataset, f, target, annotate_every=annotate_every, distractors=mode,
+        path = export_dataset(dataset, f, targets[f], annotate_every=annotate_every, distractors=mode,
                               coco_naming=coco_naming, mfcc=mfcc, test_fraction=test_fraction, shard_mb=shard_mb,
-                              progress=not quiet)
+                              progress=not quiet, overwrite=overwrite)
         typer.echo(f"{f}: {path}")
 
 
@@ -151,12 +164,18 @@ def fixture(
     out: Path = typer.Option(..., "--out", "-o", help="Output folder (new or empty)."),
     preset: str = typer.Option("clear_day_quad", "--preset", help="Scene preset to render."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace a fixture folder an earlier `evids fixture` wrote."),
 ) -> None:
     """Write a tiny regression dataset (the pytest plugin's fixtures; bytes stable per package version).
 
     Example: evids fixture mmuav --out tests/data/mmuav
     """
     from simulator.dataset.fixtures import build_fixture
+    from simulator.files import check_output, remove_output
+
+    check_output(out, overwrite=overwrite)
+    if overwrite:
+        remove_output(out)
 
     typer.echo(f"{name}: {build_fixture(name, out, preset=preset, seed=seed)}")
 

@@ -28,6 +28,7 @@ def render(
     frames: Optional[int] = typer.Option(None, "--frames", min=1, help="Render only the first K frames."),
     fmt: str = typer.Option("native", "--format", help="native and/or antiuav, comma-separated."),
     preview: bool = typer.Option(False, "--preview", help="Also write OUT/<name>_preview.png (RGB | thermal contact sheet)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace OUT/<scenario name>/ if an earlier evids render wrote it."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
 ) -> None:
     """Render a scenario to paired RGB + thermal frames, masks and labels.
@@ -42,10 +43,22 @@ def render(
     if seed is not None and seed < 0:
         raise UserInputError(f"--seed must be >= 0, got {seed}")
     use_seed = seed if seed is not None else (scenario.seed if scenario.seed is not None else 0)
+    from simulator.files import check_output, inside
+
+    scene_file = [Path(scene)] if Path(scene).is_file() else []
+    targets = [out / scenario.name] if "native" in formats else []
+    if "antiuav" in formats:
+        targets += [out / "antiuav" / scenario.name, out / "antiuav" / f"{scenario.name}_visible"]
+    for target in targets:
+        inside(target, out)
+        check_output(target, inputs=scene_file, overwrite=overwrite)
+    notes: list[str] = []
     written = render_sequence(scenario, use_seed, out, n_frames=frames, formats=formats, preview=preview,
-                              progress=not quiet)
+                              progress=not quiet, overwrite=overwrite, notes=notes)
     for kind, path in written.items():
         typer.echo(f"{kind}: {path}")
+    for note in notes:
+        typer.echo(f"note: {note}", err=True)
 
 
 @scenes_app.command("list")

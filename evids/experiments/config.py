@@ -212,12 +212,13 @@ class ExperimentConfig(_Model):
 
 def load_experiment_config(source: str | Path | dict | ExperimentConfig) -> ExperimentConfig:
     """Validate a mapping, a YAML file or an already-built config; bad input -> UserInputError."""
+    from evids.experiments.validate import validate_experiment
     from scenes.loader import load_validated
 
     if isinstance(source, ExperimentConfig):
         return source
     name = "<experiment config>" if isinstance(source, dict) else str(source)
-    cfg = load_validated(source, ExperimentConfig, None, "experiment config")
+    cfg = validate_experiment(load_validated(source, ExperimentConfig, None, "experiment config"), name)
     if cfg.dataset.generate is not None:
         from simulator.dataset.trident import load_trident_config
 

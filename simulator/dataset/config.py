@@ -169,12 +169,9 @@ def load_generation_config(config_or_name: str | Path | dict | GenerationConfig)
         text = str(config_or_name)
         path = GENERATION_DIR / f"{text}.yaml" if not Path(text).suffix and "/" not in text else Path(text)
         if path.is_file():
-            import yaml
+            from scenes.yaml_safe import load_yaml_file
 
-            try:
-                data = yaml.safe_load(path.read_text())
-            except yaml.YAMLError:
-                data = None
+            data = load_yaml_file(path)  # bounded and strict (duplicate keys, alias bombs, depth)
             if isinstance(data, dict) and "clips" in data and "mixture" not in data:
                 raise UserInputError(f"{text!r} is a TRIDENT clip config: use `evids generate {text} --format trident`")
     return load_validated(config_or_name, GenerationConfig, GENERATION_DIR, "generation config")

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from scenes.errors import UserInputError
+from scenes.errors import UserInputError, short_repr
 from simulator.dataset.config import (
     GenerationConfig,
     load_generation_config,
@@ -31,7 +31,15 @@ from simulator.dataset.config import (
     sequence_seed,
     split_assignment,
 )
-from simulator.files import HASH_FILE, verify_hashes
+from simulator.files import (
+    HASH_FILE,
+    LOCK_FILE,
+    DatasetLock,
+    check_output,
+    check_plain_name,
+    inside,
+    verify_hashes,
+)
 
 MANIFEST = "manifest.json"
 SEQUENCES_DIR = "sequences"
@@ -57,6 +65,7 @@ class GenerationResult:
     rendered: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
     exports: dict[str, Path] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
 
 
 def _canonical(data: Any) -> str:
@@ -124,8 +133,20 @@ def load_manifest(dataset_dir: Path) -> dict[str, Any]:
     return manifest
 
 
+def missing_planned_files(seq_dir: Path, n_frames: int) -> list[str]:
+    """Files the native layout says a sequence of ``n_frames`` must have that its files.sha256 does
+    not list (so a sequence missing frames can never be certified, whatever its hash file says)."""
+    from simulator.formats.native import sequence_files
+
+    listed_file = Path(seq_dir) / HASH_FILE
+    if not listed_file.is_file():
+        return [HASH_FILE]
+    listed = {line.split("  ", 1)[1] for line in listed_file.read_text(errors="replace").splitlines() if "  " in line}
+    return sorted(set(sequence_files(n_frames)) - listed)
+
+
 def _sequence_ok(seq_dir: Path, task: dict[str, Any], recorded_hash: str | None) -> bool:
-    if not (seq_dir / "meta.json").is_file() or verify_hashes(seq_dir):
+    if not (seq_dir / "meta.json").is_file() or verify_hashes(seq_dir) or missing_planned_files(seq_dir, task["n_frames"]):
         return False
     try:
         meta = json.loads((seq_dir / "meta.json").read_text())
@@ -137,7 +158,8 @@ def _sequence_ok(seq_dir: Path, task: dict[str, Any], recorded_hash: str | None)
 
 
 def _clean_stale(folder: Path) -> None:
-    """Remove temporary folders/files of killed runs (hidden .tmp-*/.old-*/.native-*)."""
+    """Remove temporary folders/files of killed runs (hidden .tmp-*/.old-*/.native-*). Called only by
+    the holder of the dataset lock: every other writer of this dataset is then dead."""
     if not folder.is_dir():
         return
     for child in folder.iterdir():
@@ -176,11 +198,13 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
 
         stages = PassTimes()
         wall0 = time.perf_counter()
+        notes: list[str] = []
         written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False,
-                                  times=stages, **writer)
+                                  times=stages, overwrite=True, notes=notes, **writer)
         stages.seconds["setup + metadata (rest)"] = time.perf_counter() - wall0 - sum(stages.seconds.values())
         return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
-                "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid(), "stage_s": stages.seconds}
+                "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid(), "stage_s": stages.seconds,
+                "notes": notes}
     except Exception as exc:  # reported per sequence by the driver; other sequences continue
         last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
         where = f" at {Path(last.filename).name}:{last.lineno}" if last else ""
@@ -194,6 +218,45 @@ def _peak_rss_mb() -> float:
 
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
+
+
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with_driver(driver_pid: int) -> None:
+    """Pool worker initializer: the worker dies with its driver. On Linux the kernel sends SIGKILL
+    when the parent (the driver, or the forkserver, which exits when the driver does) dies
+    (prctl PR_SET_PDEATHSIG); everywhere a daemon thread also polls the driver's pid once a
+    second. So a kill -9 of the driver never leaves workers publishing sequences or holding memory."""
+    import signal
+    import threading
+
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the watchdog below still applies
+        pass
+
+    def driver_alive() -> bool:
+        try:
+            os.kill(driver_pid, 0)
+        except ProcessLookupError:
+            return False
+        except PermissionError:
+            return True
+        return True
+
+    if not driver_alive():  # the driver died before prctl took effect
+        os._exit(1)
+
+    def watchdog() -> None:
+        while driver_alive():
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watchdog, name="evids-driver-watchdog", daemon=True).start()
 
 
 def _threads_per_worker(workers: int) -> int:
@@ -212,7 +275,8 @@ def _run_local(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int,
 
     method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
     threads = 1 if force_pool else _threads_per_worker(workers)
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method))
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method), initializer=_die_with_driver,
+                               initargs=(os.getpid(),))
     try:
         futures = {pool.submit(render_task, t, str(sequences_dir), threads): t["name"] for t in tasks}
         for future in as_completed(futures):
@@ -343,22 +407,45 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
     identity = dataset_identity(config, seed, tasks)
 
     out = Path(out_dir)
+    config_file = [Path(config_or_name)] if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file() else []
+    if out.is_dir() and not (out / LOCK_FILE).exists() and any(out.iterdir()) and not (out / MANIFEST).is_file():
+        raise UserInputError(f"output folder {str(out)!r} is not empty and holds no evids dataset; choose another --out")
+    check_output(out, inputs=config_file, overwrite=overwrite, allow_resume=True)
+    lock = DatasetLock(out, "generate").acquire()
+    try:
+        return _generate_locked(out, config, seed, tasks, identity, lock, workers=workers, executor=executor,
+                                ray_address=ray_address, formats=formats, overwrite=overwrite, progress=progress)
+    finally:
+        lock.release()
+
+
+def _generate_locked(out: Path, config: GenerationConfig, seed: int, tasks: list[dict[str, Any]], identity: str,
+                     lock: DatasetLock, *, workers: int, executor: str, ray_address: str | None,
+                     formats: tuple[str, ...], overwrite: bool, progress: bool) -> GenerationResult:
+    """The body of :func:`generate_dataset`, run while holding the dataset lock."""
+    notes = []
+    if lock.stale:
+        notes.append(f"removed a stale lock left by a dead run (pid {lock.stale.get('pid', '?')} on host "
+                     f"{lock.stale.get('host', '?')}); its unfinished work is redone")
     recorded: dict[str, str] = {}
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        if not (out / MANIFEST).is_file():
-            raise UserInputError(f"output folder {str(out)!r} is not empty and holds no evids dataset; choose another --out")
+    if (out / MANIFEST).is_file():
         try:
             old = json.loads((out / MANIFEST).read_text())
         except json.JSONDecodeError:
+            old = {}
+        if not isinstance(old, dict):
             old = {}
         if old.get("dataset_id") != identity:
             if not overwrite:
                 raise UserInputError(
                     f"output folder {str(out)!r} holds a different dataset (manifest {MANIFEST} was made from another "
                     "config, seed, --sequences or --frames); use a new --out, or --overwrite to replace it")
-            shutil.rmtree(out)
+            for child in out.iterdir():  # everything but our own lock
+                if child.name != LOCK_FILE:
+                    shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
         else:
-            recorded = {s["name"]: s["content_sha256"] for s in old.get("sequences", []) if s.get("content_sha256")}
+            entries = old.get("sequences", [])
+            recorded = {s["name"]: s["content_sha256"] for s in entries if isinstance(s, dict) and s.get("content_sha256")}
     out.mkdir(parents=True, exist_ok=True)
     seq_root = out / SEQUENCES_DIR
     seq_root.mkdir(exist_ok=True)
@@ -368,10 +455,12 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
 
     wanted = {t["name"] for t in tasks}
     for child in seq_root.iterdir():
-        if child.is_dir() and child.name not in wanted:
+        if child.is_symlink():  # never followed: the link goes, its target stays
+            child.unlink()
+        elif child.is_dir() and child.name not in wanted:
             shutil.rmtree(child)
     todo = [t for t in tasks if not _sequence_ok(seq_root / t["name"], t, recorded.get(t["name"]))]
-    result = GenerationResult(out_dir=out, skipped=[t["name"] for t in tasks if t not in todo])
+    result = GenerationResult(out_dir=out, skipped=[t["name"] for t in tasks if t not in todo], notes=notes)
     results = run_tasks(todo, seq_root, workers=workers, executor=executor, ray_address=ray_address,
                         progress=progress, label=f"generate {config.name}")
     failures = {name: r["error"] for name, r in results.items() if "error" in r}
@@ -380,11 +469,12 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
     if failures:
         raise GenerationFailed(failures)
     result.rendered = [t["name"] for t in todo]
+    result.notes += [f"{name}: {note}" for name, r in sorted(results.items()) for note in r.get("notes", [])]
     hashes = {t["name"]: sequence_hash(seq_root / t["name"]) for t in tasks}
     write_manifest(out, _manifest(config, seed, tasks, identity, hashes))
     for fmt in formats:
         if fmt != "native":
-            result.exports[fmt] = export_dataset(out, fmt, out / fmt, progress=progress)
+            result.exports[fmt] = _export_locked(out, fmt, out / fmt, overwrite=True, progress=progress)
     return result
 
 
@@ -408,8 +498,19 @@ def verify_dataset(dataset_dir: str | Path, *, progress: bool = False) -> Verify
     """Re-hash every sequence against its files.sha256 and the manifest's content hash."""
     root = Path(dataset_dir)
     manifest = load_manifest(root)
-    report = VerifyReport(incomplete=not manifest.get("complete", False))
+    complete = manifest.get("complete", False) is True
+    report = VerifyReport(incomplete=not complete)
     entries = manifest_entries(manifest, root / MANIFEST)
+    planned = manifest.get("config", {}).get("sequences") if isinstance(manifest.get("config"), dict) else None
+    listed = {e["name"] for e in entries}
+    if isinstance(planned, int):
+        for index in range(planned):  # the manifest may not drop what the plan says exists
+            if sequence_name(index) not in listed:
+                report.corrupt[sequence_name(index)] = ["manifest.json (planned sequence not listed)"]
+    if (root / SEQUENCES_DIR).is_dir():
+        for child in sorted((root / SEQUENCES_DIR).iterdir()):
+            if child.is_dir() and not child.name.startswith(".") and child.name not in listed:
+                report.corrupt.setdefault(child.name, []).append("not listed in manifest.json")
     if progress:
         from rich.progress import track
 
@@ -420,7 +521,11 @@ def verify_dataset(dataset_dir: str | Path, *, progress: bool = False) -> Verify
         if not seq.is_dir():
             report.missing.append(entry["name"])
             continue
-        bad = verify_hashes(seq)
+        bad = verify_hashes(seq) + _identity_problems(seq, entry)
+        if not bad and isinstance(entry.get("n_frames"), int):
+            bad = [f"{rel} (planned, absent)" for rel in missing_planned_files(seq, entry["n_frames"])]
+        if not bad and complete and not entry.get("content_sha256"):
+            bad = ["manifest.json (no content hash recorded for a complete dataset)"]
         if not bad and entry.get("content_sha256") and sequence_hash(seq) != entry["content_sha256"]:
             bad = [HASH_FILE]
         if bad:
@@ -435,12 +540,33 @@ def manifest_entries(manifest: dict[str, Any], path: Path) -> list[dict[str, Any
         raise UserInputError(f"{path}: key 'sequences' is missing or not a list (not a complete evids manifest)")
     for k, e in enumerate(entries):
         name = e.get("name") if isinstance(e, dict) else None
-        if not isinstance(name, str) or not name or name in (".", "..") or "/" in name or "\\" in name:
-            raise UserInputError(f"{path}: sequences[{k}].name must be a plain folder name, got {name!r}")
+        if not _plain(name):
+            raise UserInputError(f"{path}: sequences[{k}].name must be a plain folder name, got {short_repr(name)}")
         split = e.get("split", "train")
-        if not isinstance(split, str) or not split or split in (".", "..") or "/" in split or "\\" in split:
-            raise UserInputError(f"{path}: sequences[{k}].split must be a plain folder name, got {split!r}")
+        if not _plain(split):
+            raise UserInputError(f"{path}: sequences[{k}].split must be a plain folder name, got {short_repr(split)}")
     return entries
+
+
+def _plain(name: Any) -> bool:
+    """A plain path component (simulator.files.check_plain_name's rule)."""
+    try:
+        check_plain_name(name, "name")
+    except UserInputError:
+        return False
+    return True
+
+
+def _identity_problems(seq: Path, entry: dict[str, Any]) -> list[str]:
+    """A sequence folder holding another sequence (swapped folders): seed/frame count differ from the entry."""
+    try:
+        meta = json.loads((seq / "meta.json").read_text())
+    except (OSError, ValueError):
+        return ["meta.json (unreadable)"]
+    if not isinstance(meta, dict):
+        return ["meta.json (not a mapping)"]
+    wrong = [k for k in ("seed", "n_frames") if k in entry and meta.get(k) != entry[k]]
+    return [f"meta.json ({', '.join(wrong)} differ from the manifest: another sequence's folder?)"] if wrong else []
 
 
 def dataset_sequences(dataset_dir: str | Path) -> list[dict[str, Any]]:
@@ -449,12 +575,43 @@ def dataset_sequences(dataset_dir: str | Path) -> list[dict[str, Any]]:
     manifest = load_manifest(root)
     if not manifest.get("complete"):
         raise UserInputError(f"{root}: the dataset is incomplete; re-run `evids generate` with the same arguments")
-    return [{**e, "path": root / SEQUENCES_DIR / e["name"]} for e in manifest_entries(manifest, root / MANIFEST)]
+    entries = manifest_entries(manifest, root / MANIFEST)
+    for e in entries:
+        inside(root / SEQUENCES_DIR / e["name"], root / SEQUENCES_DIR)  # no link out of the dataset either
+    return [{**e, "path": root / SEQUENCES_DIR / e["name"]} for e in entries]
+
+
+def export_inputs(dataset_dir: str | Path, out_dir: str | Path) -> list[Path]:
+    """What an export reads (and so may never overwrite or enclose): a native dataset's manifest and
+    sequences/, or every top-level entry of a TRIDENT clip dataset except ``out_dir`` itself."""
+    root, out = Path(dataset_dir), Path(out_dir)
+    if _is_trident_dataset(root):
+        return [c for c in sorted(root.iterdir()) if c.resolve() != out.resolve() and not c.name.startswith(".")]
+    return [root / MANIFEST, root / SEQUENCES_DIR]
 
 
 def export_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, annotate_every: int = 1,
                    distractors: bool | str | None = None, coco_naming: str = "evids", mfcc: str = "evids",
-                   test_fraction: float = 0.2, shard_mb: float = 500.0, progress: bool = True) -> Path:
+                   test_fraction: float = 0.2, shard_mb: float = 500.0, progress: bool = True,
+                   overwrite: bool = False) -> Path:
+    """Export a complete dataset (see :func:`_export_locked`) under the safe-output rule: ``out_dir``
+    is new/empty, or an earlier evids export replaced only with ``overwrite``; never the dataset's
+    manifest or data folders, nor a folder containing them. Holds the dataset lock."""
+    root = Path(dataset_dir)
+    out = Path(out_dir)
+    if not (root / MANIFEST).is_file():
+        raise UserInputError(f"{root} is not an evids dataset (no {MANIFEST})")
+    check_output(out, inputs=export_inputs(root, out), overwrite=overwrite)
+    with DatasetLock(root, f"export {fmt}", required=False):
+        return _export_locked(root, fmt, out, annotate_every=annotate_every, distractors=distractors,
+                              coco_naming=coco_naming, mfcc=mfcc, test_fraction=test_fraction, shard_mb=shard_mb,
+                              progress=progress, overwrite=overwrite)
+
+
+def _export_locked(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, annotate_every: int = 1,
+                   distractors: bool | str | None = None, coco_naming: str = "evids", mfcc: str = "evids",
+                   test_fraction: float = 0.2, shard_mb: float = 500.0, progress: bool = True,
+                   overwrite: bool = False) -> Path:
     """Export a complete dataset to ``fmt`` under ``out_dir`` (docs/FORMATS.md); written to a temporary
     sibling and renamed, so a failure leaves ``out_dir`` as it was.
 
@@ -473,7 +630,7 @@ def export_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, an
         raise UserInputError(f"--annotate-every must be >= 1, got {annotate_every}")
     if _is_trident_dataset(dataset_dir):
         return _export_trident_dataset(dataset_dir, fmt, out_dir, mfcc=mfcc, test_fraction=test_fraction,
-                                       shard_mb=shard_mb, progress=progress)
+                                       shard_mb=shard_mb, progress=progress, overwrite=overwrite)
     if fmt not in EXPORT_FORMATS:
         raise UserInputError(f"--format must be one of {', '.join(EXPORT_FORMATS)}, got {fmt!r}")
     from simulator.formats.coco import NAMINGS
@@ -485,7 +642,7 @@ def export_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, an
         raise UserInputError(f"--distractors must be one of {', '.join(DISTRACTOR_MODES)}, got {distractors!r}")
     entries = dataset_sequences(dataset_dir)
     out = Path(out_dir)
-    with atomic_folder(out) as tmp:
+    with atomic_folder(out, overwrite=overwrite, kind=f"export {fmt}") as tmp:
         if fmt in ("antiuav", "antiuav_rgbt", "antiuav2021"):
             from simulator.formats import antiuav
 
@@ -526,7 +683,7 @@ def _is_trident_dataset(dataset_dir: str | Path) -> bool:
 
 
 def _export_trident_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, mfcc: str,
-                            test_fraction: float, shard_mb: float, progress: bool) -> Path:
+                            test_fraction: float, shard_mb: float, progress: bool, overwrite: bool = False) -> Path:
     """TRIDENT clip dataset -> the public TRIDENT layout or WebDataset shards of segments."""
     from simulator.files import atomic_folder
 
@@ -534,7 +691,7 @@ def _export_trident_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Pa
         raise UserInputError(f"{dataset_dir}: a TRIDENT clip dataset exports to {', '.join(TRIDENT_EXPORT_FORMATS)} "
                              f"only, got {fmt!r}")
     out = Path(out_dir)
-    with atomic_folder(out) as tmp:
+    with atomic_folder(out, overwrite=overwrite, kind=f"export {fmt}") as tmp:
         if fmt == "trident":
             from simulator.formats.trident import export_public
 

@@ -12,7 +12,14 @@ import numpy as np
 
 from scenes.loader import scenario_to_yaml
 from scenes.schema import Scenario
-from simulator.files import atomic_folder, package_versions, write_hashes
+from simulator.files import (
+    atomic_folder,
+    package_versions,
+    remove_output,
+    temp_sibling,
+    write_hashes,
+    write_marker,
+)
 from simulator.formats.native import FORMAT_VERSION, frame_name, write_json, write_png
 from simulator.physics.timeline import Timeline, build_timeline
 from simulator.render.labels import CLASS_OF_KIND, coverage_labels
@@ -121,13 +128,18 @@ class _FrameWriter:
 
 def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: int | None = None,
                     formats: tuple[str, ...] = ("native",), preview: bool = False, progress: bool = True,
-                    times: PassTimes | None = None, writer_threads: int = WRITER_THREADS) -> dict[str, Path]:
+                    times: PassTimes | None = None, writer_threads: int = WRITER_THREADS, overwrite: bool = False,
+                    notes: list[str] | None = None) -> dict[str, Path]:
     """Render ``scenario`` with ``seed`` into ``out_dir``; returns the written paths by kind.
 
     native: ``out_dir/<name>/`` (docs/NATIVE_FORMAT.md); antiuav: ``out_dir/antiuav/<name>/`` and
     ``<name>_visible/``; preview: ``out_dir/<name>_preview.png``. Nothing is left half-written.
     Frames are rendered in batches (simulator.render.plan) and written by worker threads.
+    Existing outputs are replaced only with ``overwrite`` and only if evids wrote them. A camera
+    pose that sees nothing is refused before rendering; plausibility findings (a target never in
+    view, clipped thermal counts) are appended to ``notes``.
     """
+    from simulator.dataset.plausibility import check_camera_poses, targets_never_seen
     from simulator.render.renderer import SequenceRenderer
 
     unknown = [f for f in formats if f not in FORMATS]
@@ -136,15 +148,18 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
     out_dir = Path(out_dir)
     times = times or PassTimes()
     timeline = build_timeline(scenario, seed, n_frames)
+    check_camera_poses(timeline)
     renderer = SequenceRenderer(timeline)
     camera = CameraModel(timeline, renderer.exposure)  # issue 13: the camera model (sensor: ideal = plain encodings)
     netd = scenario.camera_rig.thermal.netd_k
     rgb_cam, th_cam = timeline.cameras["rgb"], timeline.cameras["thermal"]
+    clipped_px = 0
+    counts_max = 2 ** getattr(scenario.camera_rig.thermal, "adc_bits", 16) - 1
     written: dict[str, Path] = {}
     final = out_dir / scenario.name
     keep_native = "native" in formats
-    staging = final if keep_native else out_dir / f".native-{scenario.name}"
-    with atomic_folder(staging) as tmp:
+    staging = final if keep_native else temp_sibling(final, "native")
+    with atomic_folder(staging, overwrite=overwrite, kind="sequence") as tmp:
         frames = []
         bar = None
         if progress:
@@ -166,6 +181,7 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                 t0 = times.add("render (rgb + thermal + coverage)", t0)
                 # the camera model keeps state (bolometer lag): it runs here, in frame order
                 recorded = camera.record(i, buffers.rgb_linear, buffers.thermal_radiance, buffers.thermal_kelvin)
+                clipped_px += int(np.count_nonzero(np.asarray(recorded.thermal_counts) >= counts_max))
                 t0 = times.add("camera model", t0)
                 frames.append({
                     "index": i, "time_s": round(float(timeline.times_s[i]), 6),
@@ -206,11 +222,21 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
         write_hashes(tmp)
     if keep_native:
         written["native"] = final
+    if notes is not None:
+        notes.extend(f"target {name!r} is never in view of any camera (all frames exist: 0)"
+                     for name in targets_never_seen(frames))
+        if clipped_px:
+            notes.append(f"{clipped_px} thermal pixel(s) clipped at {counts_max} counts; raise kelvin_per_count")
     try:
         if "antiuav" in formats:
             from simulator.formats.antiuav import export_antiuav
 
+            if overwrite:
+                remove_output(out_dir / "antiuav" / scenario.name)
+                remove_output(out_dir / "antiuav" / f"{scenario.name}_visible")
             ir, vis = export_antiuav(staging, out_dir / "antiuav", scenario.name)
+            write_marker(ir, "render antiuav")  # so a later `render --overwrite` may replace them
+            write_marker(vis, "render antiuav")
             written["antiuav"], written["antiuav_visible"] = ir, vis
         if preview:
             from simulator.dataset.preview import contact_sheet
@@ -232,6 +258,9 @@ def render_rgb_video(scenario: Scenario, seed: int, n_frames: int, width_px: int
         "rgb": rig.rgb.model_copy(update={"width_px": width_px, "height_px": height_px}),
         "thermal": rig.thermal.model_copy(update={"width_px": 16, "height_px": 16})})})
     timeline = build_timeline(small, seed, n_frames)
+    from simulator.dataset.plausibility import check_camera_poses
+
+    check_camera_poses(timeline)
     renderer = SequenceRenderer(timeline, cameras=("rgb",), labels=False)
     out = np.empty((timeline.n_frames, height_px, width_px, 3), np.uint8)
     try:

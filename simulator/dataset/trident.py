@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -540,7 +539,10 @@ def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir:
     frames_fn = render_frames or _default_frames
     n_frames = config.n_segments * config.frames_per_segment
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
+    from simulator.files import clean_dead_temps, temp_sibling
+
+    clean_dead_temps(out.parent, out.name)  # left by killed runs (never a live run's)
+    tmp = temp_sibling(out)
     if tmp.exists():
         shutil.rmtree(tmp)
     tmp.mkdir()

@@ -23,6 +23,17 @@ def frame_name(index0: int, ext: str) -> str:
     return f"{index0 + 1:06d}.{ext}"
 
 
+#: per-frame image folders of a native sequence (one PNG per frame in each)
+FRAME_FOLDERS = ("rgb", "thermal", "thermal_agc", "masks/rgb", "masks/thermal")
+#: per-sequence files of a native sequence (besides files.sha256)
+SEQUENCE_FILES = ("labels.json", "meta.json", "scenario.yaml", "timeline.npz")
+
+
+def sequence_files(n_frames: int) -> list[str]:
+    """Every file a complete native sequence of ``n_frames`` holds (posix relative paths)."""
+    return list(SEQUENCE_FILES) + [f"{d}/{frame_name(i, 'png')}" for d in FRAME_FOLDERS for i in range(n_frames)]
+
+
 def write_png(path: Path, image: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     if image.ndim == 3:
