@@ -367,7 +367,7 @@ def discounted_belief_fusion(
     mean_dc = torch.where(pair, dc, torch.zeros((), dtype=b.dtype)).sum(dim=1) / n_other.clamp(min=1.0)
     t = (1.0 - mean_dc).clamp(0.0, 1.0)
     bd = t.unsqueeze(-1) * b
-    ud = 1.0 - t * (1.0 - u)
+    ud = (1.0 - t) + t * u          # = 1 - t (1 - u), without cancelling u to 0 in float32 when t = 1
     if base == "cumulative":
         fb, fu = _cumulative(bd, ud)
     else:
