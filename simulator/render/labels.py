@@ -48,6 +48,22 @@ def local_contrast_k(kelvin: np.ndarray, id_mask: np.ndarray, target_id: int, bo
     return float(window_k[target].mean() - window_k[background].mean())
 
 
+def _record(track, cam, frame: int, box: list[int] | None, visible_px: float, width: int, height: int) -> dict:
+    """The camera-independent fields of one target's label record (both label builders share them)."""
+    range_m = float(np.linalg.norm(track.position_m[frame] - cam.origin_m[frame]))
+    return {
+        "id": track.target_id,
+        "name": track.name,
+        "class": CLASS_OF_KIND[track.kind],
+        "exist": int(box is not None),
+        "box": box if box is not None else [],
+        "visible_px": visible_px,
+        "range_m": round(range_m, 4),
+        "truncated": bool(box is not None and (box[0] == 0 or box[1] == 0 or box[0] + box[2] == width
+                                                or box[1] + box[3] == height)),
+    }
+
+
 def frame_labels(timeline: Timeline, frame: int, camera: str, id_mask: np.ndarray,
                  kelvin: np.ndarray | None = None, netd_k: float | None = None) -> list[dict]:
     """One record per target for this camera and frame."""
@@ -57,18 +73,7 @@ def frame_labels(timeline: Timeline, frame: int, camera: str, id_mask: np.ndarra
     for track in timeline.targets:
         mask = id_mask == track.target_id
         box = tight_box(mask)
-        range_m = float(np.linalg.norm(track.position_m[frame] - cam.origin_m[frame]))
-        record = {
-            "id": track.target_id,
-            "name": track.name,
-            "class": CLASS_OF_KIND[track.kind],
-            "exist": int(box is not None),
-            "box": box if box is not None else [],
-            "visible_px": int(mask.sum()),
-            "range_m": round(range_m, 4),
-            "truncated": bool(box is not None and (box[0] == 0 or box[1] == 0 or box[0] + box[2] == width
-                                                    or box[1] + box[3] == height)),
-        }
+        record = _record(track, cam, frame, box, int(mask.sum()), width, height)
         if kelvin is not None:
             contrast = local_contrast_k(kelvin, id_mask, track.target_id, box) if box is not None else None
             record["contrast_k"] = None if contrast is None or np.isnan(contrast) else round(contrast, 5)
@@ -108,18 +113,8 @@ def coverage_labels(timeline: Timeline, frame: int, camera: str, coverage: list,
     for track in timeline.targets:
         cov = by_id.get(track.target_id)
         box = _box_of_coverage(cov) if cov is not None else None
-        range_m = float(np.linalg.norm(track.position_m[frame] - cam.origin_m[frame]))
-        record = {
-            "id": track.target_id,
-            "name": track.name,
-            "class": CLASS_OF_KIND[track.kind],
-            "exist": int(box is not None),
-            "box": box if box is not None else [],
-            "visible_px": round(cov.visible_px, 4) if box is not None else 0.0,
-            "range_m": round(range_m, 4),
-            "truncated": bool(box is not None and (box[0] == 0 or box[1] == 0 or box[0] + box[2] == width
-                                                    or box[1] + box[3] == height)),
-        }
+        record = _record(track, cam, frame, box, round(cov.visible_px, 4) if box is not None else 0.0,
+                         width, height)
         if netd_k is not None:
             contrast = round(target_contrast_k(cov), 5) if box is not None else None
             record["contrast_k"] = contrast
