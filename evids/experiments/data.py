@@ -58,12 +58,12 @@ class Prepared:
 
 
 def _frames_fn(render_px: int):
-    def render(scenario, seed, n_frames, width_px, height_px):
+    def render(scenario, seed, n_frames, width_px, height_px, layout=None):
         import cv2
 
         from simulator.dataset.sequence import render_rgb_video
 
-        small = render_rgb_video(scenario, seed, n_frames, render_px, render_px)
+        small = render_rgb_video(scenario, seed, n_frames, render_px, render_px, layout=layout)
         if render_px == width_px and render_px == height_px:
             return small
         return np.stack([cv2.resize(f, (width_px, height_px), interpolation=cv2.INTER_LINEAR) for f in small])

@@ -61,14 +61,14 @@ def fixture_target(root: Path, name: str) -> Path:
     return root / "trident"
 
 
-def _tiny_frames(scenario, seed: int, n_frames: int, width_px: int, height_px: int) -> np.ndarray:
+def _tiny_frames(scenario, seed: int, n_frames: int, width_px: int, height_px: int, layout=None) -> np.ndarray:
     """A few frames rendered at a tiny size, upscaled (nearest) and held over the clip."""
     import cv2
 
     from simulator.dataset.sequence import render_rgb_video
 
     px = FIXTURE_SPEC["trident_render_px"]
-    small = render_rgb_video(scenario, seed, min(n_frames, FIXTURE_SPEC["trident_rendered_frames"]), px, px)
+    small = render_rgb_video(scenario, seed, min(n_frames, FIXTURE_SPEC["trident_rendered_frames"]), px, px, layout=layout)
     pick = (np.arange(n_frames) * len(small)) // n_frames
     return np.stack([cv2.resize(small[k], (width_px, height_px), interpolation=cv2.INTER_NEAREST) for k in pick])
 

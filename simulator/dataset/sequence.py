@@ -248,20 +248,26 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
     return written
 
 
-def render_rgb_video(scenario: Scenario, seed: int, n_frames: int, width_px: int, height_px: int) -> np.ndarray:
+def render_rgb_video(scenario: Scenario, seed: int, n_frames: int, width_px: int, height_px: int,
+                     layout: Scenario | None = None) -> np.ndarray:
     """(F, H, W, 3) uint8 RGB frames at a chosen size (for small-video datasets such as TRIDENT).
-    RGB only, no labels: whole frames batched many per launch."""
+    RGB only, no labels: whole frames batched many per launch. ``layout``: render with the launch
+    layout of that scene (the same cameras, these targets first): a counterfactual twin passes its
+    drone clip's scene, so every pixel the drone does not reach gets byte-identical values."""
     from simulator.render.renderer import SequenceRenderer
 
-    rig = scenario.camera_rig
-    small = scenario.model_copy(update={"camera_rig": rig.model_copy(update={
-        "rgb": rig.rgb.model_copy(update={"width_px": width_px, "height_px": height_px}),
-        "thermal": rig.thermal.model_copy(update={"width_px": 16, "height_px": 16})})})
-    timeline = build_timeline(small, seed, n_frames)
+    def small(sc: Scenario) -> Scenario:
+        rig = sc.camera_rig
+        return sc.model_copy(update={"camera_rig": rig.model_copy(update={
+            "rgb": rig.rgb.model_copy(update={"width_px": width_px, "height_px": height_px}),
+            "thermal": rig.thermal.model_copy(update={"width_px": 16, "height_px": 16})})})
+
+    timeline = build_timeline(small(scenario), seed, n_frames)
     from simulator.dataset.plausibility import check_camera_poses
 
     check_camera_poses(timeline)
-    renderer = SequenceRenderer(timeline, cameras=("rgb",), labels=False)
+    layout_timeline = None if layout is None else build_timeline(small(layout), seed, n_frames)
+    renderer = SequenceRenderer(timeline, cameras=("rgb",), labels=False, layout=layout_timeline)
     out = np.empty((timeline.n_frames, height_px, width_px, 3), np.uint8)
     try:
         for i, buffers in renderer.iter_frames():

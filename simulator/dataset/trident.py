@@ -56,7 +56,7 @@ AUDIBLE_BAND_HZ = (200.0, 8000.0)     # band in which drone and background level
 VISIBLE_MIN_PX = 1.0                  # projected size below which a target is not "in view"
 _TRIDENT_SEED_TAG = 6                  # separates clip seeds from other users of the "generation" stream
 
-FramesFn = Callable[[Scenario, int, int, int, int], np.ndarray]
+FramesFn = Callable[..., np.ndarray]  # (scenario, seed, n_frames, width_px, height_px[, layout=Scenario])
 
 
 
@@ -435,10 +435,11 @@ def synthesize_clip(scenario: Scenario, seed: int, config: TridentConfig, *, rf_
 # Writing the TRIDENT layout
 
 
-def _default_frames(scenario: Scenario, seed: int, n_frames: int, width_px: int, height_px: int) -> np.ndarray:
+def _default_frames(scenario: Scenario, seed: int, n_frames: int, width_px: int, height_px: int,
+                    layout: Scenario | None = None) -> np.ndarray:
     from simulator.dataset.sequence import render_rgb_video
 
-    return render_rgb_video(scenario, seed, n_frames, width_px, height_px)
+    return render_rgb_video(scenario, seed, n_frames, width_px, height_px, layout=layout)
 
 
 def _versions() -> dict[str, str]:
@@ -465,6 +466,7 @@ class PlanItem(BaseModel):
     rf_silent: bool = False
     ambience: Ambience | None = None
     rf: RFConfig | None = None
+    layout: Scenario | None = None  # a twin: its drone clip's scene (renders with the same launch layout)
     meta: dict[str, Any] = Field(default_factory=dict)
 
 
@@ -490,19 +492,23 @@ def build_plan(config: TridentConfig, seed: int) -> list[PlanItem]:
                                  meta={**common, "twin": first + 1 if config.scenes.twins else None}))
             if config.scenes.twins:
                 plan.append(PlanItem(group=sc.name, scenario=sc.twin, seed=s_seed, rf_silent=sc.rf_silent,
-                                     ambience=sc.ambience, rf=sc.rf, meta={**common, "twin": first}))
+                                     ambience=sc.ambience, rf=sc.rf, layout=sc.drone, meta={**common, "twin": first}))
     return plan
 
 
 def render_clip_frames(scenario: Scenario, seed: int, config: TridentConfig, frames_fn: FramesFn,
-                       n_frames: int) -> np.ndarray:
-    """Video frames of a clip; with ``video_render_stride`` k every k-th frame is rendered and held."""
+                       n_frames: int, layout: Scenario | None = None) -> np.ndarray:
+    """Video frames of a clip; with ``video_render_stride`` k every k-th frame is rendered and held.
+    ``layout`` (a twin's drone scene) is passed on to ``frames_fn`` as a keyword when given."""
     k = config.video_render_stride
-    if k == 1:
-        return np.asarray(frames_fn(scenario, seed, n_frames, config.video_px, config.video_px), dtype=np.uint8)
-    slow = scenario.model_copy(update={"frame_rate_hz": scenario.frame_rate_hz / k})
-    few = np.asarray(frames_fn(slow, seed, n_frames // k, config.video_px, config.video_px), dtype=np.uint8)
-    return np.repeat(few, k, axis=0)
+    px = config.video_px
+    if k > 1:
+        scenario = scenario.model_copy(update={"frame_rate_hz": scenario.frame_rate_hz / k})
+        if layout is not None:
+            layout = layout.model_copy(update={"frame_rate_hz": layout.frame_rate_hz / k})
+    extra = {} if layout is None else {"layout": layout}
+    frames = np.asarray(frames_fn(scenario, seed, n_frames // k, px, px, **extra), dtype=np.uint8)
+    return frames if k == 1 else np.repeat(frames, k, axis=0)
 
 
 def segment_drone_px(scenario: Scenario, seed: int, config: TridentConfig) -> np.ndarray:
@@ -555,7 +561,7 @@ def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir:
             steps = track(steps, description=f"trident {config.name}", total=len(plan))
         for k in steps:
             item = plan[k]
-            frames = render_clip_frames(item.scenario, item.seed, config, frames_fn, n_frames)
+            frames = render_clip_frames(item.scenario, item.seed, config, frames_fn, n_frames, layout=item.layout)
             clip = synthesize_clip(item.scenario, item.seed, config, rf_silent=item.rf_silent,
                                    ambience=item.ambience, frames=frames, rf_config=item.rf)
             meta = {"scenario": item.scenario.name, "seed": item.seed, "label": clip.truth.label, **item.meta,

@@ -271,7 +271,7 @@ def test_trident_cleans_a_killed_runs_temporary_and_keeps_a_live_ones(tmp_path):
     stale.mkdir()
     live.mkdir()
 
-    def frames(scenario, seed, n, w, h):
+    def frames(scenario, seed, n, w, h, layout=None):
         return np.zeros((n, h, w, 3), np.uint8)
 
     config = {"name": "t", "clip_duration_s": 0.25, "save_iq": False, "clips": [{"scenario": "clear_day_quad"}]}

@@ -22,7 +22,7 @@ def _evids(*args):
                           capture_output=True, text=True, timeout=600, env=env)
 
 
-def _frames(scenario, seed, n_frames, width_px, height_px):
+def _frames(scenario, seed, n_frames, width_px, height_px, layout=None):
     """Cheap stand-in for the renderer: sky gradient + a dark blob for drone scenarios."""
     rng = np.random.default_rng(seed)
     img = np.zeros((n_frames, height_px, width_px, 3), np.uint8)

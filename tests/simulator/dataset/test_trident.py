@@ -31,7 +31,7 @@ def _config(clips, **kw):
     return tr.load_trident_config(base)
 
 
-def _frames(scenario, seed, n, w, h):
+def _frames(scenario, seed, n, w, h, layout=None):
     return np.broadcast_to((np.arange(n, dtype=np.uint8) * 9)[:, None, None, None], (n, h, w, 3)).copy()
 
 

@@ -125,7 +125,7 @@ def generated(tmp_path_factory):
     """A generated TRIDENT dataset: 3 drone clips + 2 background clips of 1 s (4 segments), no rendering."""
     base = tmp_path_factory.mktemp("gen")
 
-    def frames(scenario, seed, n, w, h):
+    def frames(scenario, seed, n, w, h, layout=None):
         return _frames(n, w)
 
     hover = {"name": "d", "kind": "quadcopter", "size_m": 0.45, "trajectory": {"kind": "hover", "center_m": [0, 60, 15]}}
