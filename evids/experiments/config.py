@@ -30,6 +30,8 @@ class DatasetConfig(_Model):
     clip_duration_s: float | None = Field(default=None, gt=0.0, description="override the generation config's")
     render_px: int | None = Field(default=None, ge=16, le=1024,
                                   description="render video at this size and resize to video_px (None: video_px)")
+    workers: int = Field(default=2, ge=1, le=64,
+                         description="processes that write clips (files are byte-identical for any count)")
 
     @model_validator(mode="after")
     def _one_source(self) -> DatasetConfig:
@@ -68,6 +70,9 @@ class ModelsConfig(_Model):
     torch_threads: int = Field(default=1, ge=1, le=64, description=(
         "torch threads for training and inference: fixed (results do not depend on the machine's load); "
         "1 avoids OpenMP spin-contention on a shared 2-core machine"))
+    train_workers: int = Field(default=2, ge=1, le=64, description=(
+        "processes that train the unimodal models (one job per seed x modality x head, each on "
+        "torch_threads threads; the trained weights do not depend on this count)"))
     fusion_fit: Literal["val_noisy", "train_clean"] = Field(default="val_noisy", description=(
         "Late Fusion / GMU fitted on validation outputs under the test noise protocol (default) or on clean "
         "train outputs; the other variant is always fitted too, as a labelled control"))

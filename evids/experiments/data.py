@@ -57,18 +57,22 @@ class Prepared:
     generated: bool
 
 
+def _render_at(render_px: int, scenario, seed, n_frames, width_px, height_px, layout=None):
+    """Video frames rendered at ``render_px`` and resized to the clip's size."""
+    import cv2
+
+    from simulator.dataset.sequence import render_rgb_video
+
+    small = render_rgb_video(scenario, seed, n_frames, render_px, render_px, layout=layout)
+    if render_px == width_px and render_px == height_px:
+        return small
+    return np.stack([cv2.resize(f, (width_px, height_px), interpolation=cv2.INTER_LINEAR) for f in small])
+
+
 def _frames_fn(render_px: int):
-    def render(scenario, seed, n_frames, width_px, height_px, layout=None):
-        import cv2
+    import functools
 
-        from simulator.dataset.sequence import render_rgb_video
-
-        small = render_rgb_video(scenario, seed, n_frames, render_px, render_px, layout=layout)
-        if render_px == width_px and render_px == height_px:
-            return small
-        return np.stack([cv2.resize(f, (width_px, height_px), interpolation=cv2.INTER_LINEAR) for f in small])
-
-    return render
+    return functools.partial(_render_at, render_px)  # picklable: clips are written in worker processes
 
 
 def ensure_dataset(cfg: DatasetConfig, run_dir: Path, progress: bool = True) -> tuple[Path, bool]:
@@ -88,7 +92,8 @@ def ensure_dataset(cfg: DatasetConfig, run_dir: Path, progress: bool = True) -> 
         gen = gen.model_copy(update={"clip_duration_s": cfg.clip_duration_s})
         gen = type(gen).model_validate(gen.model_dump())
     frames = _frames_fn(cfg.render_px) if cfg.render_px is not None else None
-    generate_trident(gen, root, cfg.seed, n_clips=cfg.n_clips, progress=progress, render_frames=frames)
+    generate_trident(gen, root, cfg.seed, n_clips=cfg.n_clips, progress=progress, render_frames=frames,
+                     workers=cfg.workers)
     return root, True
 
 

@@ -110,32 +110,95 @@ def training_seed_base(seed: int) -> int:
     return int(seed)
 
 
+_INPUT_KEY = {"audio": "mfcc", "video": "video", "rf": "rf"}
+_FORKED: dict = {}  # the training arrays, inherited by forked training workers (never pickled)
+
+
+def _train_job(mc, modality: str, head: str, train_seed: int) -> tuple[dict, dict]:
+    """Train one unimodal model on the arrays in ``_FORKED``; (state dict, record)."""
+    x, y_tr, y_va = _FORKED["x"], _FORKED["y_tr"], _FORKED["y_va"]
+    torch.set_num_threads(mc.torch_threads)
+    init_seed, order_seed = model_seed(training_seed_base(train_seed), modality, head)
+    model = build_model(modality, head, init_seed, mc.width, mc.embedding, mc.video_pool, mc.video_frames)
+    res: TrainResult = train_model(model, x["train"][_INPUT_KEY[modality]], y_tr, x["val"][_INPUT_KEY[modality]],
+                                   y_va, mc.train, order_seed)
+    return model.state_dict(), {"init_seed": init_seed, "order_seed": order_seed, **res.to_json()}
+
+
+def train_unimodal(cfg: ExperimentConfig, prep: Prepared, seeds: list[int], progress: bool = True
+                   ) -> list[tuple[dict[tuple[str, str], UnimodalModel], dict]]:
+    """Stage 1 for every training seed: six unimodal models per seed, trained as independent jobs
+    (seed x modality x head) in ``models.train_workers`` forked processes, longest (video) first.
+    Each job's weights depend only on its seeds, so the result is the same for any worker count."""
+    tr, va = prep.split["train"], prep.split["val"]
+    _FORKED.update(x={s: {k: stack(prep.clips, idx, k) for k in ("mfcc", "video", "rf")}
+                      for s, idx in (("train", tr), ("val", va))},
+                   y_tr=labels_of(prep.clips, tr), y_va=labels_of(prep.clips, va))
+    mc = cfg.models
+    order = {"video": 0, "rf": 1, "audio": 2}
+    jobs = sorted(((s, m, h) for s in seeds for m in MODALITIES for h in HEADS), key=lambda j: order[j[1]])
+    done: dict[tuple[int, str, str], tuple[dict, dict]] = {}
+    bar = task = None
+    if progress:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        bar = Progress(TextColumn(f"training unimodal models ({len(seeds)} seeds)"), BarColumn(),
+                       MofNCompleteColumn(), TimeElapsedColumn())
+        task = bar.add_task("models", total=len(jobs))
+        bar.start()
+    try:
+        if mc.train_workers <= 1:
+            for job in jobs:
+                done[job] = _train_job(mc, job[1], job[2], job[0])
+                if bar is not None:
+                    bar.advance(task)
+        else:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor, as_completed
+
+            # fork: the workers inherit the arrays (pickling ~0.7 GB of video per worker is avoided);
+            # torch has run no parallel region in this process yet (1 thread), so forking is safe
+            with ProcessPoolExecutor(max_workers=mc.train_workers, mp_context=mp.get_context("fork")) as pool:
+                futures = {pool.submit(_train_job, mc, m, h, s): (s, m, h) for s, m, h in jobs}
+                for future in as_completed(futures):
+                    done[futures[future]] = future.result()
+                    if bar is not None:
+                        bar.advance(task)
+    finally:
+        _FORKED.clear()
+        if bar is not None:
+            bar.stop()
+    results = []
+    for seed in seeds:
+        unimodal, record = {}, {"train_seed": int(seed), "unimodal": {}}
+        for modality in MODALITIES:
+            for head in HEADS:
+                state, rec = done[(seed, modality, head)]
+                model = build_model(modality, head, 0, mc.width, mc.embedding, mc.video_pool, mc.video_frames)
+                model.load_state_dict(state)
+                model.eval()
+                unimodal[(modality, head)] = model
+                record["unimodal"][f"{modality}/{head}"] = rec
+        results.append((unimodal, record))
+    return results
+
+
 def train_all(cfg: ExperimentConfig, prep: Prepared, progress: bool = True, train_seed: int = 0,
-              val_noisy: dict[str, np.ndarray] | None = None) -> tuple[Models, dict]:
-    """Stage 1 (six unimodal models, seed ``train_seed``) and stage 2: Late Fusion / GMU fitted on
-    validation outputs under the test noise protocol (``val_noisy`` inputs) and, as a labelled
-    control, on clean train outputs; temperatures for every sigmoid model and fusion head."""
+              val_noisy: dict[str, np.ndarray] | None = None,
+              trained: tuple[dict[tuple[str, str], UnimodalModel], dict] | None = None) -> tuple[Models, dict]:
+    """Stage 1 (six unimodal models, seed ``train_seed``; or ``trained``, from train_unimodal) and
+    stage 2: Late Fusion / GMU fitted on validation outputs under the test noise protocol
+    (``val_noisy`` inputs) and, as a labelled control, on clean train outputs; temperatures for
+    every sigmoid model and fusion head."""
     from evids.metrics import fit_temperature_flagged
 
     tr, va = prep.split["train"], prep.split["val"]
     y_tr, y_va = labels_of(prep.clips, tr), labels_of(prep.clips, va)
     x = {s: {k: stack(prep.clips, idx, k) for k in ("mfcc", "video", "rf")} for s, idx in (("train", tr), ("val", va))}
     mc = cfg.models
-    unimodal: dict[tuple[str, str], UnimodalModel] = {}
-    record: dict = {"train_seed": int(train_seed), "unimodal": {}}
-    jobs = [(m, h) for m in MODALITIES for h in HEADS]
-    if progress:
-        from rich.progress import track
-
-        jobs = track(jobs, description=f"training unimodal models (seed {train_seed})", total=len(jobs))
-    key = {"audio": "mfcc", "video": "video", "rf": "rf"}
-    for modality, head in jobs:
-        init_seed, order_seed = model_seed(training_seed_base(train_seed), modality, head)
-        model = build_model(modality, head, init_seed, mc.width, mc.embedding, mc.video_pool, mc.video_frames)
-        res: TrainResult = train_model(model, x["train"][key[modality]], y_tr, x["val"][key[modality]], y_va,
-                                       mc.train, order_seed)
-        unimodal[(modality, head)] = model
-        record["unimodal"][f"{modality}/{head}"] = {"init_seed": init_seed, "order_seed": order_seed, **res.to_json()}
+    if trained is None:
+        trained = train_unimodal(cfg, prep, [train_seed], progress)[0]
+    unimodal, record = trained
     stub = Models(unimodal, LateFusion(3), GMU([mc.embedding] * 3, mc.gmu_hidden, 1))
     out_tr = encode(stub, x["train"]["mfcc"], x["train"]["video"], x["train"]["rf"])
     noisy = val_noisy if val_noisy is not None else x["val"]

@@ -191,9 +191,12 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
              for i in va]
     val_noisy = {"mfcc": np.concatenate([p.mfcc for p in parts]), "video": np.concatenate([p.video for p in parts]),
                  "rf": np.concatenate([p.rf for p in parts])}
+    from evids.experiments.pipeline import train_unimodal
+
     models, records = [], []
-    for train_seed in cfg.models.seeds:
-        m, rec = train_all(cfg, prep, progress, train_seed, val_noisy)
+    trained = train_unimodal(cfg, prep, list(cfg.models.seeds), progress)
+    for train_seed, stage1 in zip(cfg.models.seeds, trained):
+        m, rec = train_all(cfg, prep, progress, train_seed, val_noisy, trained=stage1)
         models.append(m)
         records.append(rec)
     record = {"runs": records}

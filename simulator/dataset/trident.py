@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -521,18 +522,85 @@ def segment_drone_px(scenario: Scenario, seed: int, config: TridentConfig) -> np
     return np.where(seen.any(1), px.sum(1) / np.maximum(seen.sum(1), 1), 0.0)
 
 
+def _write_one_clip(tmp: Path, k: int, item: PlanItem, config: TridentConfig, frames_fn: FramesFn,
+                    n_frames: int) -> dict[str, Any]:
+    """Render, synthesise and write clip ``k`` (0-based) into ``tmp``; its manifest entry."""
+    frames = render_clip_frames(item.scenario, item.seed, config, frames_fn, n_frames, layout=item.layout)
+    clip = synthesize_clip(item.scenario, item.seed, config, rf_silent=item.rf_silent,
+                           ambience=item.ambience, frames=frames, rf_config=item.rf)
+    meta = {"scenario": item.scenario.name, "seed": item.seed, "label": clip.truth.label, **item.meta,
+            "drone_px": [round(float(v), 2) for v in segment_drone_px(item.scenario, item.seed, config)]}
+    write_clip(tmp, item.group, k + 1, clip, config, meta)
+    return {"clip": k + 1, "group": item.group, **{m: v for m, v in meta.items() if m != "drone_px"}}
+
+
+def _clip_worker_init(driver_pid: int) -> None:
+    from simulator.dataset.generate import _die_with_driver
+
+    _die_with_driver(driver_pid)
+    import drjit as dr
+
+    dr.set_thread_count(1)  # one process per core: Dr.Jit's own pool would oversubscribe
+
+
+def _run_clip_jobs(jobs: list[tuple], workers: int, progress: bool, label: str):
+    """Yield each job's manifest entry (in completion order) with a progress bar; in-process for one
+    worker, else a process pool whose workers die with the driver (see generate._die_with_driver)."""
+    bar = task = None
+    if progress:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+        task = bar.add_task("clips", total=len(jobs))
+        bar.start()
+    try:
+        if workers <= 1 or len(jobs) <= 1:
+            for job in jobs:
+                yield _write_one_clip(*job)
+                if bar is not None:
+                    bar.advance(task)
+            return
+        import multiprocessing as mp
+        from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+
+        method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=mp.get_context(method),
+                                   initializer=_clip_worker_init, initargs=(os.getpid(),))
+        try:
+            pending = {pool.submit(_write_one_clip, *job) for job in jobs}
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_EXCEPTION)
+                for future in done:
+                    yield future.result()  # a failed clip raises here: the run stops, tmp is removed
+                    if bar is not None:
+                        bar.advance(task)
+        except BaseException:
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.terminate()
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
+    finally:
+        if bar is not None:
+            bar.stop()
+
+
 def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir: str | Path, seed: int, *,
                      n_clips: int | None = None, progress: bool = True,
-                     render_frames: FramesFn | None = None) -> Path:
+                     render_frames: FramesFn | None = None, workers: int = 1) -> Path:
     """Generate a TRIDENT-layout dataset into ``out_dir`` (must not exist or be empty); returns it.
 
     Clip k (0-based over the expanded clip list, first ``n_clips`` only) uses seed
     ``clip_seed(seed, k)`` and is numbered k + 1 in file names. ``render_frames(scenario, seed,
     n_frames, width_px, height_px)`` supplies video frames (default: the Mitsuba renderer).
     Written to a temporary sibling directory first and renamed, so a failed run leaves nothing.
+    ``workers`` > 1 writes clips in that many processes (each clip depends only on its own seed, so
+    the files are byte-identical for any worker count; ``render_frames`` must then be picklable).
     """
     from scenes.errors import UserInputError
 
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise UserInputError(f"workers must be an integer >= 1, got {workers!r}")
     config = load_trident_config(config_or_name)
     out = Path(out_dir)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -554,20 +622,10 @@ def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir:
     tmp.mkdir()
     clips_meta = []
     try:
-        steps = range(len(plan))
-        if progress:
-            from rich.progress import track
-
-            steps = track(steps, description=f"trident {config.name}", total=len(plan))
-        for k in steps:
-            item = plan[k]
-            frames = render_clip_frames(item.scenario, item.seed, config, frames_fn, n_frames, layout=item.layout)
-            clip = synthesize_clip(item.scenario, item.seed, config, rf_silent=item.rf_silent,
-                                   ambience=item.ambience, frames=frames, rf_config=item.rf)
-            meta = {"scenario": item.scenario.name, "seed": item.seed, "label": clip.truth.label, **item.meta,
-                    "drone_px": [round(float(v), 2) for v in segment_drone_px(item.scenario, item.seed, config)]}
-            write_clip(tmp, item.group, k + 1, clip, config, meta)
-            clips_meta.append({"clip": k + 1, "group": item.group, **{m: v for m, v in meta.items() if m != "drone_px"}})
+        jobs = [(tmp, k, plan[k], config, frames_fn, n_frames) for k in range(len(plan))]
+        for entry in _run_clip_jobs(jobs, workers, progress, f"trident {config.name}"):
+            clips_meta.append(entry)
+        clips_meta.sort(key=lambda c: c["clip"])
         manifest = {
             "format": "trident", "generator": "simulator.dataset.trident.generate_trident", "seed": int(seed),
             "config": config.model_dump(mode="json"), "clips": clips_meta, "versions": _versions(),
