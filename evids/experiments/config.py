@@ -71,8 +71,9 @@ class ModelsConfig(_Model):
         "torch threads for training and inference: fixed (results do not depend on the machine's load); "
         "1 avoids OpenMP spin-contention on a shared 2-core machine"))
     train_workers: int = Field(default=2, ge=1, le=64, description=(
-        "processes that train the unimodal models (one job per seed x modality x head, each on "
-        "torch_threads threads; the trained weights do not depend on this count)"))
+        "processes that train the unimodal models (one job per seed x modality x head) and evaluate the "
+        "conditions (one job per noise variant and seed), each on torch_threads threads; weights and "
+        "metrics do not depend on this count"))
     fusion_fit: Literal["val_noisy", "train_clean"] = Field(default="val_noisy", description=(
         "Late Fusion / GMU fitted on validation outputs under the test noise protocol (default) or on clean "
         "train outputs; the other variant is always fitted too, as a labelled control"))

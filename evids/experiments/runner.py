@@ -325,29 +325,23 @@ def stage_evaluate(ctx: Context) -> dict:
     conds = [c for c in CONDITIONS if c.variant != "iq" or ctx.has_iq()]
     skipped = [{"condition": c.key, "reason": "dataset has no rf_iq/ captures (I/Q-level noise impossible)"}
                for c in CONDITIONS if c not in conds]
-    jobs = [(v, s, r) for v in VARIANTS for s in cfg.protocol.noise_seeds for r in ctx.runs
-            if any(c.variant == v for c in conds)]
-    if ctx.progress:
-        from rich.progress import track
-
-        jobs = track(jobs, description="evaluating conditions", total=len(jobs))
+    # groups of jobs that share degraded inputs: the clean variant once (its outputs serve every
+    # seed), every other variant per noise seed; each group covers every training run
+    groups = [(v, tuple(cfg.protocol.noise_seeds) if v == "clean" else (s,)) for v in VARIANTS
+              for s in (cfg.protocol.noise_seeds[:1] if v == "clean" else cfg.protocol.noise_seeds)
+              if any(c.variant == v for c in conds)]
     per: dict[str, list[dict]] = {c.key: [] for c in conds}
     correct: dict[str, list[np.ndarray]] = {c.key: [] for c in conds}
     preds0: dict[str, Prediction] = {}
-    for variant, seed, run in jobs:
-        out = ctx.outputs(variant, seed, run=run)
-        for c in conds:
-            if c.variant != variant:
-                continue
-            pred = predict_condition(c, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction, gate)
-            m = metrics_of(pred, y, cfg.ece_bins)
-            m.update({"run": run, "noise_seed": seed})
-            per[c.key].append(m)
-            correct[c.key].append(pred.probs.argmax(1) == y)
-            if seed == cfg.protocol.noise_seeds[0] and run == 0:
-                preds0[c.key] = pred
-        if run == ctx.runs[-1]:
-            ctx.drop_inputs()
+    results = dict(_map_groups(ctx, groups, (conds, y, cid, gate), "evaluating conditions"))
+    for group in groups:                                   # accumulate in job order (deterministic)
+        for variant, seed, run, out, items in results[group]:
+            ctx.cache[(variant, seed, "test", run, ())] = out
+            for key, m, ok, pred in items:
+                per[key].append(m)
+                correct[key].append(ok)
+                if pred is not None:
+                    preds0[key] = pred
     rows = []
     for c in conds:
         agg = _aggregate([{k: v for k, v in r.items() if k not in ("run", "noise_seed")} for r in per[c.key]])
@@ -389,6 +383,70 @@ def stage_evaluate(ctx: Context) -> dict:
     return result
 
 
+_FORKED_CTX: dict = {}  # the context a forked evaluation worker inherits (never pickled)
+
+
+def _evaluate_group(group: tuple, extra: tuple) -> tuple[tuple, list]:
+    """Every condition of one variant under its noise seeds and every training run (in a worker)."""
+    ctx = _FORKED_CTX["ctx"]
+    conds, y, cid, gate = extra
+    cfg = ctx.cfg
+    variant, seeds = group
+    torch.set_num_threads(cfg.models.torch_threads)
+    rows = []
+    for seed in seeds:
+        for run in ctx.runs:
+            out = ctx.outputs(variant, seed, run=run)
+            items = []
+            for c in conds:
+                if c.variant != variant:
+                    continue
+                pred = predict_condition(c, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction, gate)
+                m = metrics_of(pred, y, cfg.ece_bins)
+                m.update({"run": run, "noise_seed": seed})
+                first = seed == cfg.protocol.noise_seeds[0] and run == 0
+                items.append((c.key, m, pred.probs.argmax(1) == y, pred if first else None))
+            rows.append((variant, seed, run, out, items))
+        ctx.drop_inputs()
+    return group, rows
+
+
+def _map_groups(ctx: Context, groups: list, extra: tuple, label: str, job=None):
+    """(group, result) of ``job(group, extra)`` (default _evaluate_group) for every group: in
+    ``models.train_workers`` forked processes (each on models.torch_threads threads, inheriting the
+    context; results do not depend on the count), else in-process."""
+    job = job or _evaluate_group
+    workers = min(ctx.cfg.models.train_workers, len(groups))
+    bar = task = None
+    if ctx.progress:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+        task = bar.add_task("groups", total=len(groups))
+        bar.start()
+    _FORKED_CTX["ctx"] = ctx
+    try:
+        if workers <= 1:
+            for group in groups:
+                yield job(group, extra)
+                if bar is not None:
+                    bar.advance(task)
+            return
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork")) as pool:
+            futures = [pool.submit(job, g, extra) for g in groups]
+            for future in as_completed(futures):
+                yield future.result()
+                if bar is not None:
+                    bar.advance(task)
+    finally:
+        _FORKED_CTX.clear()
+        if bar is not None:
+            bar.stop()
+
+
 def _clean_correct(ctx: Context, modality: str, y: np.ndarray) -> np.ndarray:
     m = MODALITIES.index(modality)
     return np.mean([(ctx.outputs("clean", 0, run=r).alpha[m].argmax(1) == y) for r in ctx.runs], axis=0)
@@ -408,43 +466,47 @@ def _noisy_unimodal(ctx: Context, modality: str, y: np.ndarray) -> float | None:
 SWEEP_RULES = ("late", "gmu", "average", "ds", "yager", "discounted")
 
 
+def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
+    """The sweep rows of one (modality, severity) over every noise seed and training run (in a worker)."""
+    from evids.experiments.config import NoiseEntry
+
+    ctx = _FORKED_CTX["ctx"]
+    cfg, sc = ctx.cfg, ctx.cfg.sweep
+    (seeds,) = extra
+    modality, sev = job
+    torch.set_num_threads(cfg.models.torch_threads)
+    y, cid = ctx.labels(), ctx.clip_ids()
+    name = getattr(sc, modality)
+    stream = {"audio": "audio", "video": "video", "rf": "rf_iq" if name.startswith("rf.") and not name.startswith(
+        "rf.spec") else "rf_spec"}[modality]
+    if stream == "rf_iq" and not ctx.has_iq():
+        return job, []
+    per: dict[str, list[dict]] = {}
+    for seed, run in [(s_, r_) for s_ in seeds for r_ in ctx.runs]:
+        out = ctx.outputs("clean", 0, run=run) if sev == 0 else ctx.outputs(
+            "sweep", seed, run=run, **{stream: [NoiseEntry(name=name, severity=sev)]})
+        for rule in (*SWEEP_RULES, "unimodal_sigmoid", "unimodal_edl"):
+            cond = Condition(rule, rule, "sweep", {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}.get(rule, rule),
+                             modality if rule.startswith("unimodal") else None)
+            pred = predict_condition(cond, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction,
+                                     None)
+            m = metrics_of(pred, y, cfg.ece_bins)
+            per.setdefault(rule, []).append({k: m[k] for k in ("accuracy", "macro_f1", "ece", "uauc_entropy",
+                                                               "uauc_vacuity")})
+    ctx.drop_inputs()
+    return job, [{"modality": modality, "degradation": name, "severity": sev, "rule": rule,
+                  "n_seeds": len(seeds), "n_runs": len(ctx.runs), **_aggregate(vals)} for rule, vals in per.items()]
+
+
 def stage_sweep(ctx: Context) -> dict:
     """Degradation sweep: one modality degraded at a time over the severity grid, every noise seed."""
     t0 = time.perf_counter()
     cfg = ctx.cfg
     sc = cfg.sweep
-    y, cid = ctx.labels(), ctx.clip_ids()
     seeds = cfg.protocol.noise_seeds[: sc.n_seeds or None]
-    from evids.experiments.config import NoiseEntry
-
     jobs = [(m, s) for m in MODALITIES for s in sc.severities]
-    if ctx.progress:
-        from rich.progress import track
-
-        jobs = track(jobs, description="degradation sweep", total=len(jobs))
-    rows = []
-    for modality, sev in jobs:
-        name = getattr(sc, modality)
-        stream = {"audio": "audio", "video": "video", "rf": "rf_iq" if name.startswith("rf.") and not name.startswith(
-            "rf.spec") else "rf_spec"}[modality]
-        if stream == "rf_iq" and not ctx.has_iq():
-            continue
-        per: dict[str, list[dict]] = {}
-        for seed, run in [(s_, r_) for s_ in seeds for r_ in ctx.runs]:
-            out = ctx.outputs("clean", 0, run=run) if sev == 0 else ctx.outputs(
-                "sweep", seed, run=run, **{stream: [NoiseEntry(name=name, severity=sev)]})
-            for rule in (*SWEEP_RULES, "unimodal_sigmoid", "unimodal_edl"):
-                cond = Condition(rule, rule, "sweep", {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}.get(rule, rule),
-                                 modality if rule.startswith("unimodal") else None)
-                pred = predict_condition(cond, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction,
-                                         None)
-                m = metrics_of(pred, y, cfg.ece_bins)
-                per.setdefault(rule, []).append({k: m[k] for k in ("accuracy", "macro_f1", "ece", "uauc_entropy",
-                                                                   "uauc_vacuity")})
-        ctx.drop_inputs()
-        for rule, vals in per.items():
-            rows.append({"modality": modality, "degradation": name, "severity": sev, "rule": rule,
-                         "n_seeds": len(seeds), "n_runs": len(ctx.runs), **_aggregate(vals)})
+    results = dict(_map_groups(ctx, jobs, (seeds,), "degradation sweep", job=_sweep_job))
+    rows = [row for job in jobs for row in results[job]]   # in job order (deterministic)
     write_csv(ctx.run_dir / "sweep.csv", rows)
     write_json(ctx.run_dir / "sweep.json", {"rows": rows, "seeds": seeds})
     mark_stage(ctx.run_dir, "sweep", time.perf_counter() - t0)

@@ -173,3 +173,24 @@ def test_turning_camera_roi_and_full_modes_give_identical_labels():
         la = coverage_labels(timeline, frame, "thermal", a.coverage["thermal"], cam.width_px, cam.height_px, 0.05)
         lb = coverage_labels(timeline, frame, "thermal", b.coverage["thermal"], cam.width_px, cam.height_px, 0.05)
         assert la == lb and la[0]["exist"] == 1
+
+
+def test_layout_from_a_superset_scene_keeps_shared_pixels_and_refuses_a_foreign_one(swarm):
+    """A scene rendered with the layout of the same scene plus one more target (a twin and its
+    drone clip) gets byte-identical pixels wherever the extra target does not reach; a layout
+    whose targets do not start with the scene's own is refused."""
+    scenario = swarm.scenario
+    fewer = scenario.model_copy(update={"targets": scenario.targets[:-1]})
+    own = build_timeline(fewer, 3, 20)
+    full = SequenceRenderer(swarm, cameras=("rgb",), labels=False).render_frame(4).rgb_linear
+    twin = SequenceRenderer(own, cameras=("rgb",), labels=False, layout=swarm).render_frame(4).rgb_linear
+    cam = swarm.cameras["rgb"]
+    xy, depth = cam.project(4, swarm.targets[-1].position_m[4])
+    r = 3 * swarm.targets[-1].size_m * cam.focal_px / float(depth[0]) + 6.0
+    yy, xx = np.mgrid[:cam.height_px, :cam.width_px]
+    away = np.hypot(xx - xy[0, 0], yy - xy[0, 1]) > r
+    assert np.array_equal(full[away], twin[away])          # same lanes, same random numbers
+    assert not np.array_equal(full[~away], twin[~away])    # the extra target is really there
+    reversed_targets = scenario.model_copy(update={"targets": scenario.targets[::-1]})
+    with pytest.raises(ValueError, match="layout timeline differs"):
+        SequenceRenderer(own, cameras=("rgb",), labels=False, layout=build_timeline(reversed_targets, 3, 20))
