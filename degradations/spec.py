@@ -321,7 +321,7 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
                         full[a:b] = np.asarray(new[k])
                         view[k] = full
                         meta_out[f"{stream}_{k}"] = full
-                if "frame_index_shown" in new:
+                if cls.retimes and "frame_index_shown" in new:  # others only copy the key along
                     shown = np.arange(n) if shown is None else shown
                     shown[a:b] = shown[a + np.asarray(new["frame_index_shown"])]
                 for k in ("missing", "affine", "shift_samples"):
