@@ -118,9 +118,21 @@ def degrade_sequence(sequence: Path, spec, out_dir: Path, seed: int, *, overwrit
         for i, frame in plan.frames(read, frame_meta):
             _write_frames(tmp, i, np.asarray(frame["rgb"]), frame["thermal"], kpc)
         public = {**plan.record(), "streamed": True}
-        write_json(tmp / RECORD_FILE, json.loads(json.dumps(public, default=_jsonable)))
+        write_json(tmp / RECORD_FILE, _finite_or_null(json.loads(json.dumps(public, default=_jsonable))))
         write_hashes(tmp)
     return final
+
+
+def _finite_or_null(value):
+    """The record with NaN/inf measures as None (JSON null): e.g. crossover's contrast on a frame where
+    the target is out of view is NaN, which strict JSON cannot hold."""
+    if isinstance(value, float):
+        return value if np.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite_or_null(v) for v in value]
+    return value
 
 
 def _jsonable(value):

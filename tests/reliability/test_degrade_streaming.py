@@ -142,6 +142,19 @@ def test_streamed_copy_is_deterministic_and_flags_the_conflict(tmp_path):
         str(seq / "masks" / "thermal" / "000001.png"))).all()
 
 
+def test_a_frame_without_the_target_gives_null_contrast_not_a_crash(tmp_path):
+    """Crossover measures the target/ring contrast; with the target out of view it is NaN, which the
+    strict-JSON record writer used to refuse (ValueError: the whole degrade failed)."""
+    from degradations.spec import parse_spec
+    from simulator.dataset.degrade import degrade_sequence
+
+    seq = write_sequence(tmp_path / "seq", 12, width=96, height=80)  # the square lies outside 96x80
+    out = degrade_sequence(seq, parse_spec(SPEC), tmp_path / "out", 0)
+    record = json.loads((out / "degradation_record.json").read_text())
+    runs = [r for a in record["applied"] if a["name"] == "thermal.crossover" for r in a["runs"]]
+    assert runs and all(r["contrast_k_before"] == [None] and r["contrast_k_after"] == [None] for r in runs)
+
+
 def _reference(seq: Path, spec, seed: int, folder: Path) -> dict:
     """The previous in-memory path: every frame loaded, apply_spec on the whole clip, frames written."""
     from degradations.spec import apply_spec
