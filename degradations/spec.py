@@ -9,6 +9,7 @@ docs/DEGRADATIONS.md for the formats.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -227,6 +228,16 @@ def _slice_meta(view: dict, a: int, b: int, n: int, stream: str) -> dict:
     return sub
 
 
+def checked_clock(spec: DegradationSpec, t_s: Any) -> np.ndarray:
+    """``t_s`` as float64 row times after checking it and the spec (SpecError otherwise)."""
+    if not isinstance(spec, DegradationSpec):
+        raise SpecError(f"spec must be a DegradationSpec (use load_spec/parse_spec), got {type(spec).__name__}")
+    t_s = np.asarray(t_s, dtype=np.float64).ravel()
+    if t_s.size == 0 or np.any(np.diff(t_s) <= 0):
+        raise SpecError("t_s must be a non-empty, strictly increasing array of row times (s)")
+    return t_s
+
+
 def entry_keys(entries: list[dict]) -> list[str]:
     """Random-stream key of each entry: name + occurrence number ('<name>#<k>'), so inserting other
     stages does not shift an entry's draws."""
@@ -236,6 +247,17 @@ def entry_keys(entries: list[dict]) -> list[str]:
         keys.append(f"{e['name']}#{seen.get(e['name'], 0)}")
         seen[e["name"]] = seen.get(e["name"], 0) + 1
     return keys
+
+
+def entries_on(spec: DegradationSpec, streams: list[str], skipped: list[dict]) -> Iterator[tuple[int, dict, str]]:
+    """(index, entry, random-stream key) of the entries acting on ``streams``; the others are
+    appended to ``skipped`` ("stream absent")."""
+    entries = spec.entries()
+    for i, (e, key) in enumerate(zip(entries, entry_keys(entries))):
+        if e["stream"] in streams:
+            yield i, e, key
+        else:
+            skipped.append({"index": i, "name": e["name"], "stream": e["stream"], "reason": "stream absent"})
 
 
 def entry_severity(spec: DegradationSpec, e: dict, times: np.ndarray) -> np.ndarray:
@@ -297,14 +319,10 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
     """
     if isinstance(frame_offset, bool) or not isinstance(frame_offset, (int, np.integer)) or frame_offset < 0:
         raise SpecError(f"frame_offset must be a non-negative int, got {frame_offset!r}")
-    if not isinstance(spec, DegradationSpec):
-        raise SpecError(f"spec must be a DegradationSpec (use load_spec/parse_spec), got {type(spec).__name__}")
+    t_s = checked_clock(spec, t_s)
     unknown = sorted(set(streams) - set(MODALITIES))
     if unknown:
         raise SpecError(f"streams: unknown modality {unknown}; expected keys among {list(MODALITIES)}")
-    t_s = np.asarray(t_s, dtype=np.float64).ravel()
-    if t_s.size == 0 or np.any(np.diff(t_s) <= 0):
-        raise SpecError("t_s must be a non-empty, strictly increasing array of row times (s)")
     arrays, restores = {}, {}
     for k, v in streams.items():
         arrays[k], restores[k] = _to_numpy(v)
@@ -314,12 +332,8 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
     sev_rows = {m: np.zeros(K) for m in present}
     missing_rows = {m: np.zeros(K, bool) for m in present}
     applied, skipped = [], []
-    entries = spec.entries()
-    for i, (e, key) in enumerate(zip(entries, entry_keys(entries))):
+    for i, e, key in entries_on(spec, present, skipped):
         stream = e["stream"]
-        if stream not in arrays:
-            skipped.append({"index": i, "name": e["name"], "stream": stream, "reason": "stream absent"})
-            continue
         x = arrays[stream]
         ax = _time_axis(stream)
         n = x.shape[ax]

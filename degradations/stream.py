@@ -45,8 +45,9 @@ from degradations.spec import (
     DegradationSpec,
     _runs,
     _slice_meta,
+    checked_clock,
     count_rows,
-    entry_keys,
+    entries_on,
     entry_severity,
     stream_times,
     stream_view,
@@ -243,27 +244,19 @@ def plan_frames(spec: DegradationSpec, seed: int, t_s: Any, meta: dict,
     meta: the clip's shared keys (``fps``, ``thermal_netd_k``, ...; no per-frame arrays, those come
     per frame to :meth:`FramePlan.frames`); shapes: stream -> shape of one frame ((H, W, 3) rgb,
     (H, W) thermal). Entries on other streams are skipped ("stream absent"), as in apply_spec."""
-    if not isinstance(spec, DegradationSpec):
-        raise SpecError(f"spec must be a DegradationSpec (use load_spec/parse_spec), got {type(spec).__name__}")
+    t_s = checked_clock(spec, t_s)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise SpecError(f"seed must be a non-negative int, got {seed!r}")
     unknown = sorted(set(shapes) - set(FRAME_STREAMS))
     if unknown:
         raise SpecError(f"frame streams: {unknown} are not frame streams; expected keys among {list(FRAME_STREAMS)}")
-    t_s = np.asarray(t_s, dtype=np.float64).ravel()
-    if t_s.size == 0 or np.any(np.diff(t_s) <= 0):
-        raise SpecError("t_s must be a non-empty, strictly increasing array of row times (s)")
     present = [m for m in MODALITIES if m in shapes]
     shapes = {m: tuple(int(v) for v in shapes[m]) for m in present}
     sev_rows = {m: np.zeros(t_s.size) for m in present}
     missing_rows = {m: np.zeros(t_s.size, bool) for m in present}
     stages, skipped = [], []
-    entries = spec.entries()
-    for i, (e, key) in enumerate(zip(entries, entry_keys(entries))):
+    for i, e, key in entries_on(spec, present, skipped):
         stream = e["stream"]
-        if stream not in shapes:
-            skipped.append({"index": i, "name": e["name"], "stream": stream, "reason": "stream absent"})
-            continue
         view = stream_view(meta, stream)
         times = stream_times(stream, t_s.size, view, t_s)
         sevq = entry_severity(spec, e, times)
