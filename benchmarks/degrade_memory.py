@@ -1,12 +1,14 @@
 """Peak memory of `evids degrade` (stored degraded copy) against the sequence length.
 
 Writes two miniature 640x512 native sequences (the streaming test's writer, format facts only) of
-SHORT and LONG frames and degrades each in a fresh process with the ir_blind + noise spec:
+SHORT and LONG frames and degrades each in a fresh process with one spec of the streaming test's
+table (``--spec``: frame_local = ir_blind + noise, the default; frame_drop, frame_freeze, desync,
+frame_rate_mismatch, misalignment, dropout, rgb_decoy, thermal_decoy, mixed):
 ``streamed`` = simulator.dataset.degrade.degrade_sequence (frame by frame); ``in-memory reference``
 = the previous algorithm, measured in the same run: every frame loaded, apply_spec on the whole clip.
 Prints peak RSS (MB) per length, the growth per frame, and the ratio reference/streamed at LONG.
 
-Run: .venv/bin/python benchmarks/degrade_memory.py [--short 20 --long 80]
+Run: .venv/bin/python benchmarks/degrade_memory.py [--short 20 --long 80] [--spec frame_drop]
 """
 from __future__ import annotations
 
@@ -52,17 +54,18 @@ def peak_mb(seq: Path, spec: Path, out: Path, mode: str) -> float:
 def main() -> None:
     import yaml
 
-    from tests.reliability.test_degrade_streaming import SPEC, write_sequence
+    from tests.reliability.test_degrade_streaming import ALL_SPECS, write_sequence
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--short", type=int, default=20)
     ap.add_argument("--long", type=int, default=80)
+    ap.add_argument("--spec", choices=sorted(ALL_SPECS), default="frame_local")
     args = ap.parse_args()
-    print(f"load average: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    print(f"spec {args.spec}; load average: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         spec = tmp / "spec.yaml"
-        spec.write_text(yaml.safe_dump(SPEC))
+        spec.write_text(yaml.safe_dump(ALL_SPECS[args.spec]))
         res = {}
         for n in (args.short, args.long):
             seq = write_sequence(tmp / f"seq{n}", n, 640, 512)

@@ -150,6 +150,16 @@ class Degradation:
     needs_clip: ClassVar[bool] = False
     #: rgb only: ``_apply`` accepts uint8 clips directly (cv2 filters, JPEG) and returns uint8
     uint8_native: ClassVar[bool] = False
+    #: a pure retime: output element t is input element ``frame_index(n, params)[t]``, nothing else
+    #: changes (frame drop/freeze, desync, frame-rate mismatch); measured as ``retimed_fraction``
+    retimes: ClassVar[bool] = False
+    #: clip-level transforms (needs_clip / changes_meta) that are not retimes: ``apply`` on ONE frame
+    #: of a run, with ``meta['run_offset']`` = that frame's position in the run, equals that frame
+    #: of ``apply`` on the whole run (so `evids degrade` may stream the clip frame by frame)
+    frame_separable: ClassVar[bool] = False
+    #: report the realised change of a run (``changed_frame_fraction``, ``mean_abs_change``) from
+    #: additive per-frame sums, so a run processed frame by frame reports exactly the same values
+    reports_change: ClassVar[bool] = False
 
     def __init__(self, severity: float | None = None, *, temporal: str | None = None,
                  **params: Any) -> None:
@@ -234,9 +244,30 @@ class Degradation:
         """Labels after the transform (new dict; ``shape`` is the item's shape); default: unchanged."""
         return dict(meta or {})
 
+    def frame_index(self, n: int, params: dict[str, Any]) -> np.ndarray:
+        """Retimes only: the input element shown at each of ``n`` output elements."""
+        raise DegradationError(f"{self.name}: not a retime (no frame index)")
+
+    def n_elements(self, x: np.ndarray) -> int:
+        """Length of one item's time axis (1 for a single rgb/thermal frame)."""
+        x = np.asarray(x)
+        if self.modality in ("rgb", "thermal"):
+            return 1 if x.ndim == self.item_ndims()[0] else int(x.shape[0])
+        return int(x.shape[1 if self.modality == "rf_spec" else 0])
+
     def measure(self, x: np.ndarray, y: np.ndarray, params: dict[str, Any],
                 meta: dict | None = None) -> dict[str, float]:
         """Realised quantities after apply (e.g. the realised SNR, measured from y - x)."""
+        if self.retimes:
+            return retime_measure(self.frame_index(self.n_elements(x), params))
+        if self.reports_change:
+            xs, ys = np.asarray(x), np.asarray(y)
+            if xs.ndim == self.item_ndims()[0]:
+                xs, ys = xs[None], ys[None]
+            sums = None
+            for t in range(xs.shape[0]):
+                sums = add_sums(sums, change_sums(xs[t], ys[t]))
+            return change_measure(sums)
         if not self.reports_snr:
             return {}
         xs = np.asarray(x).astype(np.complex128 if np.iscomplexobj(x) else np.float64)
@@ -318,6 +349,31 @@ class Degradation:
         if params.get("temporal", "per_frame") == "static":
             return (1,) + tuple(clip_shape[1:])
         return tuple(clip_shape)
+
+
+def retime_measure(index: np.ndarray) -> dict[str, float]:
+    """``retimed_fraction``: share of a run's output elements showing another input element."""
+    idx = np.asarray(index)
+    return {"retimed_fraction": float(np.mean(idx != np.arange(idx.size))) if idx.size else 0.0}
+
+
+def change_sums(x: np.ndarray, y: np.ndarray) -> dict[str, float]:
+    """Additive sums of the change y - x of ONE frame (stream units: grey levels, kelvin)."""
+    d = np.abs(np.asarray(y, np.float64) - np.asarray(x, np.float64))
+    return {"frames": 1.0, "changed_frames": float(d.any()), "abs_change": float(d.sum()), "values": float(d.size)}
+
+
+def add_sums(total: dict[str, float] | None, part: dict[str, float]) -> dict[str, float]:
+    """``total`` + ``part`` key by key (None is the empty sum)."""
+    return dict(part) if total is None else {k: total[k] + part[k] for k in total}
+
+
+def change_measure(sums: dict[str, float] | None) -> dict[str, float]:
+    """``changed_frame_fraction`` and ``mean_abs_change`` from the summed :func:`change_sums`."""
+    if not sums or sums["frames"] == 0:
+        return {}
+    return {"changed_frame_fraction": sums["changed_frames"] / sums["frames"],
+            "mean_abs_change": sums["abs_change"] / max(sums["values"], 1.0)}
 
 
 #: meta keys holding one entry per frame (first axis = time); retimed by frame drop/freeze/desync

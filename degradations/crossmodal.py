@@ -51,6 +51,8 @@ class SensorDropout(_Cross):
     extra = {"fill": 0.0}
     random = False
     changes_meta = True
+    frame_separable = True
+    reports_change = True
 
     def _apply(self, x, params, meta):
         fill = float(params["fill"])
@@ -74,6 +76,7 @@ class Desync(_Cross):
     identity = {"dt_s": 0.0}
     extra = {"direction": 0}
     changes_meta = True
+    retimes = True
 
     def _sample_extra(self, rng, meta, p):
         drawn = 1 if rng.random() < 0.5 else -1
@@ -84,6 +87,9 @@ class Desync(_Cross):
 
     def index(self, n: int, params) -> np.ndarray:
         return np.clip(np.arange(n) - int(params["shift"]), 0, n - 1)
+
+    def frame_index(self, n: int, params) -> np.ndarray:
+        return self.index(n, params)
 
     def _apply(self, x, params, meta):
         ax = self.time_axis()
@@ -136,6 +142,8 @@ class Misalignment(_Cross):
              "scale_delta": (0.01, 0.02, 0.04, 0.06, 0.1)}
     identity = {"shift_px": 0.0, "rot_deg": 0.0, "scale_delta": 0.0}
     changes_meta = True
+    frame_separable = True
+    reports_change = True
     default_temporal = "static"
 
     def __init__(self, severity=None, *, temporal=None, **params):
@@ -184,9 +192,13 @@ class FrameRateMismatch(_Cross):
     identity = {"rate_ratio": 1.0}
     changes_meta = True
     needs_clip = True
+    retimes = True
 
     def _sample_extra(self, rng, meta, p):
         p["phase"] = float(rng.random())
+
+    def frame_index(self, n: int, params) -> np.ndarray:
+        return self.index(n, params)
 
     def index(self, n: int, params) -> np.ndarray:
         r = float(params["rate_ratio"])

@@ -9,6 +9,7 @@ docs/DEGRADATIONS.md for the formats.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -227,6 +228,77 @@ def _slice_meta(view: dict, a: int, b: int, n: int, stream: str) -> dict:
     return sub
 
 
+def checked_clock(spec: DegradationSpec, t_s: Any) -> np.ndarray:
+    """``t_s`` as float64 row times after checking it and the spec (SpecError otherwise)."""
+    if not isinstance(spec, DegradationSpec):
+        raise SpecError(f"spec must be a DegradationSpec (use load_spec/parse_spec), got {type(spec).__name__}")
+    t_s = np.asarray(t_s, dtype=np.float64).ravel()
+    if t_s.size == 0 or np.any(np.diff(t_s) <= 0):
+        raise SpecError("t_s must be a non-empty, strictly increasing array of row times (s)")
+    return t_s
+
+
+def entry_keys(entries: list[dict]) -> list[str]:
+    """Random-stream key of each entry: name + occurrence number ('<name>#<k>'), so inserting other
+    stages does not shift an entry's draws."""
+    seen: dict[str, int] = {}
+    keys = []
+    for e in entries:
+        keys.append(f"{e['name']}#{seen.get(e['name'], 0)}")
+        seen[e["name"]] = seen.get(e["name"], 0) + 1
+    return keys
+
+
+def entries_on(spec: DegradationSpec, streams: list[str], skipped: list[dict]) -> Iterator[tuple[int, dict, str]]:
+    """(index, entry, random-stream key) of the entries acting on ``streams``; the others are
+    appended to ``skipped`` ("stream absent")."""
+    entries = spec.entries()
+    for i, (e, key) in enumerate(zip(entries, entry_keys(entries))):
+        if e["stream"] in streams:
+            yield i, e, key
+        else:
+            skipped.append({"index": i, "name": e["name"], "stream": e["stream"], "reason": "stream absent"})
+
+
+def entry_severity(spec: DegradationSpec, e: dict, times: np.ndarray) -> np.ndarray:
+    """An entry's severity at element ``times``, clipped to [0, 5] and quantised to the spec's quantum."""
+    if e["schedule"] is not None:
+        sev = np.clip(e["schedule"].severity_at(times), 0.0, 5.0)
+    else:
+        sev = np.full(times.size, DEFAULT_LEVEL if e["severity"] is None else e["severity"])
+    q = spec.severity_quantum
+    return np.clip(np.round(sev / q) * q, 0.0, 5.0)
+
+
+def count_rows(e: dict, stream: str, times: np.ndarray, sevq: np.ndarray, t_s: np.ndarray,
+               sev_rows: dict, missing_rows: dict) -> None:
+    """Add one entry's severity (row max) and dropout flags to the per-row record arrays (in place)."""
+    rows = _row_max(times, sevq, t_s)
+    sev_rows[stream] = np.maximum(sev_rows[stream], rows)
+    if e["name"] == "crossmodal.dropout":
+        missing_rows[stream] |= rows > 0
+
+
+def summary_record(spec: DegradationSpec, t_s: np.ndarray, seed: int, present: list[str], sev_rows: dict,
+                   missing_rows: dict, applied: list[dict], skipped: list[dict]) -> dict:
+    """The record's per-row part (severity, compromised, missing, conflict) plus applied/skipped."""
+    K = t_s.size
+    compromised = {m: (sev_rows[m] >= spec.compromised_at) | missing_rows[m] for m in present}
+    comp = np.stack([compromised[m] for m in present]) if present else np.zeros((0, K), bool)
+    return {
+        "t_s": t_s.tolist(),
+        "seed": int(seed),
+        "modalities": present,
+        "compromised_at": spec.compromised_at,
+        "severity": {m: sev_rows[m].round(6).tolist() for m in present},
+        "compromised": {m: compromised[m].tolist() for m in present},
+        "missing": {m: missing_rows[m].tolist() for m in present},
+        "conflict": (comp.any(axis=0) & ~comp.all(axis=0)).tolist(),
+        "applied": applied,
+        "skipped": skipped,
+    }
+
+
 def frame_local(spec: DegradationSpec) -> bool:
     """True if every entry acts on each frame alone (no retiming, no clip-long tracks), so the spec
     may be applied frame by frame (``apply_spec(..., frame_offset=i)``) in constant memory."""
@@ -247,14 +319,10 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
     """
     if isinstance(frame_offset, bool) or not isinstance(frame_offset, (int, np.integer)) or frame_offset < 0:
         raise SpecError(f"frame_offset must be a non-negative int, got {frame_offset!r}")
-    if not isinstance(spec, DegradationSpec):
-        raise SpecError(f"spec must be a DegradationSpec (use load_spec/parse_spec), got {type(spec).__name__}")
+    t_s = checked_clock(spec, t_s)
     unknown = sorted(set(streams) - set(MODALITIES))
     if unknown:
         raise SpecError(f"streams: unknown modality {unknown}; expected keys among {list(MODALITIES)}")
-    t_s = np.asarray(t_s, dtype=np.float64).ravel()
-    if t_s.size == 0 or np.any(np.diff(t_s) <= 0):
-        raise SpecError("t_s must be a non-empty, strictly increasing array of row times (s)")
     arrays, restores = {}, {}
     for k, v in streams.items():
         arrays[k], restores[k] = _to_numpy(v)
@@ -264,15 +332,8 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
     sev_rows = {m: np.zeros(K) for m in present}
     missing_rows = {m: np.zeros(K, bool) for m in present}
     applied, skipped = [], []
-    seen: dict[str, int] = {}
-    for i, e in enumerate(spec.entries()):
-        # stream key = name + occurrence number: inserting other stages does not shift this one
-        key = f"{e['name']}#{seen.get(e['name'], 0)}"
-        seen[e["name"]] = seen.get(e["name"], 0) + 1
+    for i, e, key in entries_on(spec, present, skipped):
         stream = e["stream"]
-        if stream not in arrays:
-            skipped.append({"index": i, "name": e["name"], "stream": stream, "reason": "stream absent"})
-            continue
         x = arrays[stream]
         ax = _time_axis(stream)
         n = x.shape[ax]
@@ -282,16 +343,8 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
         if stream == "rf_iq" and view.get("signal_power") is None:
             view["signal_power"] = float(np.mean(np.abs(x.astype(np.complex128)) ** 2))
         times = stream_times(stream, n, view, t_s)
-        if e["schedule"] is not None:
-            sev = np.clip(e["schedule"].severity_at(times), 0.0, 5.0)
-        else:
-            sev = np.full(n, DEFAULT_LEVEL if e["severity"] is None else e["severity"])
-        q = spec.severity_quantum
-        sevq = np.clip(np.round(sev / q) * q, 0.0, 5.0)
-        rows = _row_max(times, sevq, t_s)
-        sev_rows[stream] = np.maximum(sev_rows[stream], rows)
-        if e["name"] == "crossmodal.dropout":
-            missing_rows[stream] |= rows > 0
+        sevq = entry_severity(spec, e, times)
+        count_rows(e, stream, times, sevq, t_s, sev_rows, missing_rows)
         cls = get(e["name"])
         y = x.copy()
         runs_out = []
@@ -321,7 +374,7 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
                         full[a:b] = np.asarray(new[k])
                         view[k] = full
                         meta_out[f"{stream}_{k}"] = full
-                if "frame_index_shown" in new:
+                if cls.retimes and "frame_index_shown" in new:  # others only copy the key along
                     shown = np.arange(n) if shown is None else shown
                     shown[a:b] = shown[a + np.asarray(new["frame_index_shown"])]
                 for k in ("missing", "affine", "shift_samples"):
@@ -333,19 +386,6 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
         arrays[stream] = y
         applied.append({"index": i, "name": e["name"], "stream": stream, "program": e["program"],
                         "runs": runs_out})
-    compromised = {m: (sev_rows[m] >= spec.compromised_at) | missing_rows[m] for m in present}
-    comp = np.stack([compromised[m] for m in present]) if present else np.zeros((0, K), bool)
-    record = {
-        "t_s": t_s.tolist(),
-        "seed": int(seed),
-        "modalities": present,
-        "compromised_at": spec.compromised_at,
-        "severity": {m: sev_rows[m].round(6).tolist() for m in present},
-        "compromised": {m: compromised[m].tolist() for m in present},
-        "missing": {m: missing_rows[m].tolist() for m in present},
-        "conflict": (comp.any(axis=0) & ~comp.all(axis=0)).tolist(),
-        "applied": applied,
-        "skipped": skipped,
-        "meta": meta_out,
-    }
+    record = {**summary_record(spec, t_s, seed, present, sev_rows, missing_rows, applied, skipped),
+              "meta": meta_out}
     return {k: restores[k](arrays[k]) for k in arrays}, record

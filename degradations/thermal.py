@@ -13,7 +13,7 @@ import numpy as np
 from degradations.base import Degradation, fast_normal
 from degradations.errors import DegradationError
 from degradations.registry import register
-from degradations.video import _Decoy, bird_mask, decoy_track
+from degradations.video import _Decoy
 
 #: NETD of a typical uncooled microbolometer (K); the crossover criterion uses it.
 NETD_K = 0.05
@@ -224,5 +224,5 @@ class ThermalDecoy(_Decoy):
 
     def _apply(self, x, params, meta):
         T, H, W = x.shape
-        m = bird_mask(T, H, W, decoy_track(T, H, W, params), params["noise_seed"])
+        m = self.mask(T, H, W, params, meta)
         return x + np.float32(params["contrast_k"]) * m

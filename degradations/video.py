@@ -377,9 +377,13 @@ class _Retime(Degradation):
     changes_meta = True
     needs_clip = True
     uint8_native = True
+    retimes = True
 
     def shown_index(self, T: int, params: dict) -> np.ndarray:
         raise DegradationError(f"{self.name}: no frame index rule")
+
+    def frame_index(self, n: int, params: dict) -> np.ndarray:
+        return self.shown_index(n, params)
 
     def _apply(self, x, params, meta):
         return x[self.shown_index(x.shape[0], params)]
@@ -474,25 +478,27 @@ class LensDirt(Degradation):
         return out
 
 
-def decoy_track(T: int, H: int, W: int, params: dict) -> np.ndarray:
-    """Decoy boxes (T, 4) xywh: a straight track from the drawn start with the drawn velocity."""
+def decoy_track(T: int, H: int, W: int, params: dict, offset: int = 0) -> np.ndarray:
+    """Decoy boxes (T, 4) xywh: a straight track from the drawn start with the drawn velocity, for
+    the run's frames ``offset`` .. ``offset + T - 1``."""
     s = float(params["size_px"])
     x0, y0 = params["x0_frac"] * (W - s), params["y0_frac"] * (H - s) * 0.7
     vx, vy = params["vx_frac"] * W, params["vy_frac"] * H
-    t = np.arange(T)
+    t = int(offset) + np.arange(T)
     xs = np.clip(x0 + vx * t, 0, W - s)
     ys = np.clip(y0 + vy * t, 0, H - s)
     return np.stack([xs, ys, np.full(T, s), np.full(T, s)], axis=1).astype(np.float32)
 
 
-def bird_mask(T: int, H: int, W: int, boxes: np.ndarray, flap_seed: int) -> np.ndarray:
-    """Soft bird silhouettes (body + flapping wings) inside each box, float32 (T, H, W) in [0, 1]."""
+def bird_mask(T: int, H: int, W: int, boxes: np.ndarray, flap_seed: int, offset: int = 0) -> np.ndarray:
+    """Soft bird silhouettes (body + flapping wings) inside each box, float32 (T, H, W) in [0, 1];
+    the flap phase is that of the run's frames ``offset`` .. ``offset + T - 1``."""
     out = np.zeros((T, H, W), np.float32)
     phase = np.random.default_rng(flap_seed).uniform(0, 2 * np.pi)
     for t in range(T):
         x, y, w, h = boxes[t]
         cx, cy = int(x + w / 2), int(y + h / 2)
-        flap = np.sin(phase + 0.9 * t)
+        flap = np.sin(phase + 0.9 * (int(offset) + t))
         cv2.ellipse(out[t], (cx, cy), (max(1, int(w / 5)), max(1, int(h / 6))), 0, 0, 360, 1.0, -1)
         for sgn in (-1, 1):
             tip = (int(cx + sgn * w / 2), int(cy - flap * h / 3))
@@ -500,11 +506,31 @@ def bird_mask(T: int, H: int, W: int, boxes: np.ndarray, flap_seed: int) -> np.n
     return out
 
 
+def run_offset(meta: dict | None, name: str) -> int:
+    """meta['run_offset']: position of an item's first frame inside its run (0 for a whole run)."""
+    v = (meta or {}).get("run_offset", 0)
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+        raise DegradationError(f"{name}: meta['run_offset'] must be a non-negative int, got {v!r}")
+    return int(v)
+
+
 class _Decoy(Degradation):
-    """Base: a bird-like decoy crossing the frame; its boxes go to meta['decoy_boxes']."""
+    """Base: a bird-like decoy crossing the frame; its boxes go to meta['decoy_boxes']. The track
+    and flap phase of frame k of a run are those at ``meta['run_offset'] + k``."""
     changes_meta = True
+    frame_separable = True
+    reports_change = True
     table = {"size_px": (4.0, 6.0, 8.0, 11.0, 14.0)}
     identity = {"size_px": 0.0}
+
+    def track(self, T: int, H: int, W: int, params: dict, meta: dict | None) -> np.ndarray:
+        """Decoy boxes of this item's T frames."""
+        return decoy_track(T, H, W, params, run_offset(meta, self.name))
+
+    def mask(self, T: int, H: int, W: int, params: dict, meta: dict | None) -> np.ndarray:
+        """Bird silhouettes of this item's T frames, float32 (T, H, W)."""
+        off = run_offset(meta, self.name)
+        return bird_mask(T, H, W, decoy_track(T, H, W, params, off), params["noise_seed"], off)
 
     def _sample_extra(self, rng, meta, p):
         v = rng.random(4)
@@ -516,7 +542,7 @@ class _Decoy(Degradation):
         if shape is None or self.is_identity(params):
             return out
         T, H, W = (1,) + tuple(shape[:2]) if len(shape) == self.item_ndims()[0] else tuple(shape[:3])
-        out["decoy_boxes"] = decoy_track(T, H, W, params).tolist()
+        out["decoy_boxes"] = self.track(T, H, W, params, meta).tolist()
         return out
 
 
@@ -528,5 +554,5 @@ class VideoDecoy(_Decoy):
 
     def _apply(self, x, params, meta):
         T, H, W = x.shape[:3]
-        m = bird_mask(T, H, W, decoy_track(T, H, W, params), params["noise_seed"])[..., None]
+        m = self.mask(T, H, W, params, meta)[..., None]
         return x * (1.0 - 0.8 * m) + np.float32(0.08) * m

@@ -1,11 +1,14 @@
 """Apply a degradation spec to native sequences and write degraded copies (the stored-copy path of
 `evids degrade`; the usual path applies specs at load time with degradations.spec.apply_spec).
 
-Streaming: a spec whose entries all act on each frame alone (:func:`degradations.spec.frame_local`:
-noise, blur, glare, crossover, ...) is applied frame by frame (read one frame, degrade it, write
-it), so memory stays constant whatever the sequence length; per-frame random draws are keyed by the
-frame index. A spec with clip-level entries (frame drop/freeze, desync, decoy tracks) needs the
-whole clip and is applied in memory (documented in docs/RELIABILITY.md).
+Streaming, for every spec (:mod:`degradations.stream`): the spec is planned from the sequence's
+metadata alone (row times, fps, frame size, seed), then each output frame is computed and written
+in turn, so memory stays constant whatever the sequence length. Frame-local entries (noise, blur,
+glare, crossover, ...) act on each frame with per-frame draws keyed by the frame index; clip-level
+entries (frame drop/freeze, desync, frame-rate mismatch, misalignment, dropout, decoy tracks) have
+per-run params as in apply_spec: a retime reads the input frame it shows (a frozen frame is held
+one deep), a decoy is drawn at the frame's place on its run's track. Masks and boxes follow each
+frame through the stages. The record says ``"streamed": true``.
 
 Each output sequence is written into a temporary sibling, completed with ``degradation_record.json``,
 ``files.sha256`` and the evids marker, and only then renamed into place (the completion marker);
@@ -49,15 +52,26 @@ def find_sequences(dataset: Path) -> list[Path]:
 
 
 def _frame_meta(info: dict, labels: dict, sequence: Path, frames: slice) -> tuple[dict, np.ndarray]:
-    """Meta and row times of ``frames`` (a slice of frame indices) for apply_spec."""
+    """Meta and row times of ``frames`` (a slice of frame indices) for apply_spec (the in-memory
+    reference of benchmarks/degrade_memory.py and the tests)."""
     idx = range(*frames.indices(info["n_frames"]))
     mask = np.stack([load_mask(sequence, "thermal", i) for i in idx]) > 0
     rows = [labels["frames"][i] for i in idx]
-    times = np.array([f["time_s"] for f in rows], dtype=np.float64)
-    boxes = np.array([[*(f["rgb"][0]["box"] or [0, 0, 0, 0])] for f in rows], dtype=np.float64)
-    meta = {"fps": info["frame_rate_hz"], "thermal_mask": mask, "rgb_boxes": boxes,
-            "thermal_netd_k": info["cameras"]["thermal"]["netd_k"]}
-    return meta, times
+    meta = {**_clip_meta(info), "thermal_mask": mask, "rgb_boxes": _boxes(rows)}
+    return meta, _times(rows)
+
+
+def _clip_meta(info: dict) -> dict:
+    """The sequence's shared (not per-frame) meta keys."""
+    return {"fps": info["frame_rate_hz"], "thermal_netd_k": info["cameras"]["thermal"]["netd_k"]}
+
+
+def _times(rows: list[dict]) -> np.ndarray:
+    return np.array([f["time_s"] for f in rows], dtype=np.float64)
+
+
+def _boxes(rows: list[dict]) -> np.ndarray:
+    return np.array([[*(f["rgb"][0]["box"] or [0, 0, 0, 0])] for f in rows], dtype=np.float64)
 
 
 def _write_frames(tmp: Path, start: int, rgb: np.ndarray, kelvin: np.ndarray, kpc: float) -> None:
@@ -71,28 +85,9 @@ def _write_frames(tmp: Path, start: int, rgb: np.ndarray, kelvin: np.ndarray, kp
         write_png(tmp / "thermal_agc" / frame_name(i, "png"), agc_8bit(kelvin[k])[0])
 
 
-def _merge_records(parts: list[dict]) -> dict:
-    """One record from per-frame records (rows concatenated, runs shifted to whole-stream indices)."""
-    first = parts[0]
-    merged = {k: first[k] for k in ("seed", "modalities", "compromised_at")}
-    merged["t_s"] = [t for r in parts for t in r["t_s"]]
-    for key in ("severity", "compromised", "missing"):
-        merged[key] = {m: [v for r in parts for v in r[key][m]] for m in first["modalities"]}
-    merged["conflict"] = [v for r in parts for v in r["conflict"]]
-    applied = [{**a, "runs": []} for a in first["applied"]]
-    for offset, r in enumerate(parts):
-        for slot, a in zip(applied, r["applied"]):
-            for run in a["runs"]:
-                slot["runs"].append({**run, "start": run["start"] + offset, "stop": run["stop"] + offset})
-    merged["applied"] = applied
-    merged["skipped"] = first["skipped"]
-    merged["streamed"] = True
-    return merged
-
-
 def degrade_sequence(sequence: Path, spec, out_dir: Path, seed: int, *, overwrite: bool = False) -> Path:
     """Write ``out_dir/<name>/``: the sequence with degraded rgb/thermal frames and the record."""
-    from degradations.spec import apply_spec, frame_local
+    from degradations.stream import plan_frames
 
     sequence = Path(sequence)
     check_output(Path(out_dir) / sequence.name, inputs=[sequence], overwrite=overwrite)
@@ -101,30 +96,43 @@ def degrade_sequence(sequence: Path, spec, out_dir: Path, seed: int, *, overwrit
     info, labels = load_meta(sequence), load_labels(sequence)
     n = int(info["n_frames"])
     kpc = info["cameras"]["thermal"]["kelvin_per_count"]
+    rows = labels["frames"][:n]
+    if len(rows) != n:
+        raise UserInputError(f"{sequence}: labels.json has {len(labels['frames'])} frames, meta.json n_frames {n}")
+    boxes = _boxes(rows)
+
+    def read(stream: str, i: int) -> np.ndarray:
+        return (load_rgb(sequence, i) if stream == "rgb" else load_thermal_kelvin(sequence, i))[None]
+
+    def frame_meta(stream: str, i: int) -> dict:
+        if stream == "rgb":
+            return {"rgb_boxes": boxes[i:i + 1]}
+        return {"thermal_mask": load_mask(sequence, "thermal", i)[None] > 0}
+
+    shapes = {m: read(m, 0).shape[1:] for m in ("rgb", "thermal")}
+    plan = plan_frames(spec, seed, _times(rows), _clip_meta(info), shapes)
     skip = {HASH_FILE} | {p.relative_to(sequence).as_posix() for d in _REWRITTEN if (sequence / d).is_dir()
                           for p in (sequence / d).iterdir()}
     with atomic_folder(final, overwrite=overwrite, kind="degrade") as tmp:
         copy_tree_no_symlinks(sequence, tmp, skip=skip)
-        if frame_local(spec):
-            parts = []
-            for i in range(n):
-                meta, times = _frame_meta(info, labels, sequence, slice(i, i + 1))
-                streams = {"rgb": load_rgb(sequence, i)[None], "thermal": load_thermal_kelvin(sequence, i)[None]}
-                degraded, record = apply_spec(spec, streams, meta, seed, times, frame_offset=i)
-                _write_frames(tmp, i, np.asarray(degraded["rgb"]), degraded["thermal"], kpc)
-                parts.append({k: v for k, v in record.items() if k != "meta"})
-            public = _merge_records(parts)
-        else:
-            meta, times = _frame_meta(info, labels, sequence, slice(0, n))
-            streams = {"rgb": np.stack([load_rgb(sequence, i) for i in range(n)]),
-                       "thermal": np.stack([load_thermal_kelvin(sequence, i) for i in range(n)])}
-            degraded, record = apply_spec(spec, streams, meta, seed, times)
-            _write_frames(tmp, 0, np.asarray(degraded["rgb"]), degraded["thermal"], kpc)
-            public = {k: v for k, v in record.items() if k != "meta"}
-            public["streamed"] = False
-        write_json(tmp / RECORD_FILE, json.loads(json.dumps(public, default=_jsonable)))
+        for i, frame in plan.frames(read, frame_meta):
+            _write_frames(tmp, i, np.asarray(frame["rgb"]), frame["thermal"], kpc)
+        public = {**plan.record(), "streamed": True}
+        write_json(tmp / RECORD_FILE, _finite_or_null(json.loads(json.dumps(public, default=_jsonable))))
         write_hashes(tmp)
     return final
+
+
+def _finite_or_null(value):
+    """The record with NaN/inf measures as None (JSON null): e.g. crossover's contrast on a frame where
+    the target is out of view is NaN, which strict JSON cannot hold."""
+    if isinstance(value, float):
+        return value if np.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite_or_null(v) for v in value]
+    return value
 
 
 def _jsonable(value):

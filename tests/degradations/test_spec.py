@@ -133,3 +133,19 @@ def test_apply_spec_input_errors():
         apply_spec(spec, {"lidar": np.zeros(3)}, {}, seed=0, t_s=TS)
     with pytest.raises(SpecError, match="t_s"):
         apply_spec(spec, {}, {}, seed=0, t_s=[0.0, 0.0])
+
+
+def test_an_entry_after_a_retime_does_not_retime_the_shown_index_again():
+    """A decoy after a retime (a desync) copies meta['frame_index_shown'] along; only retimes compose
+    it (a decoy run over part of the clip used to raise an IndexError)."""
+    streams = _streams()
+    meta = {"fps": FPS, "thermal_mask": np.broadcast_to(target_mask(), (T, 64, 80))}
+    t = np.arange(T) / FPS
+    retime = {"name": "crossmodal.desync", "stream": "rgb", "severity": 5, "params": {"direction": 1}}
+    decoy = {"name": "video.decoy_bird", "schedule": {"kind": "step", "events": [{"onset_s": 1.0, "duration_s": 1.0}]}}
+    _, alone = apply_spec(parse_spec({"version": 1, "degradations": [retime]}), {"rgb": streams["rgb"]}, meta, 1, t)
+    _, both = apply_spec(parse_spec({"version": 1, "degradations": [retime, decoy]}), {"rgb": streams["rgb"]},
+                         meta, 1, t)
+    shown = alone["meta"]["rgb_frame_index_shown"]
+    assert shown != list(range(T))
+    assert both["meta"]["rgb_frame_index_shown"] == shown
