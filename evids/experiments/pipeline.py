@@ -3,6 +3,7 @@ sigmoid/evidential), stage-2 fusion heads on frozen backbones (Late Fusion, GMU)
 for the sigmoid control, and batched encoding of (degraded) inputs into per-modality outputs."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -125,6 +126,38 @@ def _train_job(mc, modality: str, head: str, train_seed: int) -> tuple[dict, dic
     return model.state_dict(), {"init_seed": init_seed, "order_seed": order_seed, **res.to_json()}
 
 
+def forked_map(fn: Callable, calls: list[tuple], workers: int, label: str | None = None):
+    """Yield (i, fn(*calls[i])) for every call, in completion order: in ``workers`` forked
+    processes (they inherit this process's memory, so large inputs are never pickled), else
+    in-process; with a progress bar when ``label`` is given."""
+    bar = task = None
+    if label is not None:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+        task = bar.add_task("jobs", total=len(calls))
+        bar.start()
+    try:
+        if workers <= 1 or len(calls) <= 1:
+            for i, call in enumerate(calls):
+                yield i, fn(*call)
+                if bar is not None:
+                    bar.advance(task)
+            return
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=mp.get_context("fork")) as pool:
+            futures = {pool.submit(fn, *call): i for i, call in enumerate(calls)}
+            for future in as_completed(futures):
+                yield futures[future], future.result()
+                if bar is not None:
+                    bar.advance(task)
+    finally:
+        if bar is not None:
+            bar.stop()
+
+
 def train_unimodal(cfg: ExperimentConfig, prep: Prepared, seeds: list[int], progress: bool = True
                    ) -> list[tuple[dict[tuple[str, str], UnimodalModel], dict]]:
     """Stage 1 for every training seed: six unimodal models per seed, trained as independent jobs
@@ -137,37 +170,14 @@ def train_unimodal(cfg: ExperimentConfig, prep: Prepared, seeds: list[int], prog
     mc = cfg.models
     order = {"video": 0, "rf": 1, "audio": 2}
     jobs = sorted(((s, m, h) for s in seeds for m in MODALITIES for h in HEADS), key=lambda j: order[j[1]])
-    done: dict[tuple[int, str, str], tuple[dict, dict]] = {}
-    bar = task = None
-    if progress:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-        bar = Progress(TextColumn(f"training unimodal models ({len(seeds)} seeds)"), BarColumn(),
-                       MofNCompleteColumn(), TimeElapsedColumn())
-        task = bar.add_task("models", total=len(jobs))
-        bar.start()
+    calls = [(mc, m, h, s) for s, m, h in jobs]
+    label = f"training unimodal models ({len(seeds)} seeds)" if progress else None
     try:
-        if mc.train_workers <= 1:
-            for job in jobs:
-                done[job] = _train_job(mc, job[1], job[2], job[0])
-                if bar is not None:
-                    bar.advance(task)
-        else:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor, as_completed
-
-            # fork: the workers inherit the arrays (pickling ~0.7 GB of video per worker is avoided);
-            # torch has run no parallel region in this process yet (1 thread), so forking is safe
-            with ProcessPoolExecutor(max_workers=mc.train_workers, mp_context=mp.get_context("fork")) as pool:
-                futures = {pool.submit(_train_job, mc, m, h, s): (s, m, h) for s, m, h in jobs}
-                for future in as_completed(futures):
-                    done[futures[future]] = future.result()
-                    if bar is not None:
-                        bar.advance(task)
+        # fork: the workers inherit the arrays (pickling ~0.7 GB of video per worker is avoided);
+        # torch has run no parallel region in this process yet (1 thread), so forking is safe
+        done = {jobs[i]: r for i, r in forked_map(_train_job, calls, mc.train_workers, label)}
     finally:
         _FORKED.clear()
-        if bar is not None:
-            bar.stop()
     results = []
     for seed in seeds:
         unimodal, record = {}, {"train_seed": int(seed), "unimodal": {}}

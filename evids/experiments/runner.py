@@ -412,39 +412,18 @@ def _evaluate_group(group: tuple, extra: tuple) -> tuple[tuple, list]:
 
 
 def _map_groups(ctx: Context, groups: list, extra: tuple, label: str, job=None):
-    """(group, result) of ``job(group, extra)`` (default _evaluate_group) for every group: in
-    ``models.train_workers`` forked processes (each on models.torch_threads threads, inheriting the
-    context; results do not depend on the count), else in-process."""
-    job = job or _evaluate_group
-    workers = min(ctx.cfg.models.train_workers, len(groups))
-    bar = task = None
-    if ctx.progress:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    """(group, result) of ``job(group, extra)`` (default _evaluate_group) for every group, through
+    pipeline.forked_map on ``models.train_workers`` processes (each on models.torch_threads
+    threads, inheriting the context; results do not depend on the count)."""
+    from evids.experiments.pipeline import forked_map
 
-        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-        task = bar.add_task("groups", total=len(groups))
-        bar.start()
     _FORKED_CTX["ctx"] = ctx
     try:
-        if workers <= 1:
-            for group in groups:
-                yield job(group, extra)
-                if bar is not None:
-                    bar.advance(task)
-            return
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork")) as pool:
-            futures = [pool.submit(job, g, extra) for g in groups]
-            for future in as_completed(futures):
-                yield future.result()
-                if bar is not None:
-                    bar.advance(task)
+        for _, result in forked_map(job or _evaluate_group, [(g, extra) for g in groups], ctx.cfg.models.train_workers,
+                                    label if ctx.progress else None):
+            yield result
     finally:
         _FORKED_CTX.clear()
-        if bar is not None:
-            bar.stop()
 
 
 def _clean_correct(ctx: Context, modality: str, y: np.ndarray) -> np.ndarray:

@@ -286,12 +286,18 @@ def _run_local(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int,
                 on_done({"name": futures[future], "error": f"worker process died ({exc})"})
     except BaseException:
         # Ctrl-C: stop the workers now (their hidden temporaries are removed by the next run) and
-        # start none of the queued sequences. (ProcessPoolExecutor has no public terminate before 3.14.)
-        for proc in list((getattr(pool, "_processes", None) or {}).values()):
-            proc.terminate()
-        pool.shutdown(wait=False, cancel_futures=True)
+        # start none of the queued sequences
+        terminate_pool(pool)
         raise
     pool.shutdown(wait=True)
+
+
+def terminate_pool(pool) -> None:
+    """Stop a ProcessPoolExecutor's workers now and drop its queued jobs (no public terminate
+    before Python 3.14)."""
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        proc.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _run_ray(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int, address: str | None,

@@ -575,9 +575,9 @@ def _run_clip_jobs(jobs: list[tuple], workers: int, progress: bool, label: str):
                     if bar is not None:
                         bar.advance(task)
         except BaseException:
-            for proc in list((getattr(pool, "_processes", None) or {}).values()):
-                proc.terminate()
-            pool.shutdown(wait=False, cancel_futures=True)
+            from simulator.dataset.generate import terminate_pool
+
+            terminate_pool(pool)
             raise
         pool.shutdown(wait=True)
     finally:
