@@ -53,13 +53,26 @@ class Outputs:
     emb: np.ndarray
 
     def replace(self, m: int, other: Outputs) -> Outputs:
-        logit, alpha, emb = self.logit.copy(), self.alpha.copy(), self.emb.copy()
-        logit[m], alpha[m], emb[m] = other.logit[m], other.alpha[m], other.emb[m]
-        return Outputs(logit, alpha, emb)
+        """A copy with modality ``m`` taken from ``other``."""
+        return self.with_modality(m, other.logit[m], other.alpha[m], other.emb[m])
+
+    def with_modality(self, m: int, logit: np.ndarray, alpha: np.ndarray, emb: np.ndarray) -> Outputs:
+        """A copy with modality ``m``'s outputs replaced."""
+        new_logit, new_alpha, new_emb = self.logit.copy(), self.alpha.copy(), self.emb.copy()
+        new_logit[m], new_alpha[m], new_emb[m] = logit, alpha, emb
+        return Outputs(new_logit, new_alpha, new_emb)
 
 
 def _inputs(modality: str, mfcc: np.ndarray, video: np.ndarray, rf: np.ndarray) -> np.ndarray:
     return {"audio": mfcc, "video": video, "rf": rf}[modality]
+
+
+def encode_modality(models: Models, modality: str, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(sigmoid logits (N,), evidential alphas (N, 2), sigmoid-backbone embeddings (N, d)) of one
+    modality's frozen models on its inputs ``x``."""
+    logit, emb = predict(models.unimodal[(modality, "sigmoid")], x)
+    alpha, _ = predict(models.unimodal[(modality, "evidential")], x)
+    return logit, alpha, emb
 
 
 def encode(models: Models, mfcc: np.ndarray, video: np.ndarray, rf: np.ndarray,
@@ -71,9 +84,7 @@ def encode(models: Models, mfcc: np.ndarray, video: np.ndarray, rf: np.ndarray,
     for m, modality in enumerate(MODALITIES):
         if modality not in only:
             continue
-        x = _inputs(modality, mfcc, video, rf)
-        logit[m], emb[m] = predict(models.unimodal[(modality, "sigmoid")], x)
-        alpha[m], _ = predict(models.unimodal[(modality, "evidential")], x)
+        logit[m], alpha[m], emb[m] = encode_modality(models, modality, _inputs(modality, mfcc, video, rf))
     return Outputs(logit, alpha, emb)
 
 

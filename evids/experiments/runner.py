@@ -41,6 +41,7 @@ from evids.experiments.pipeline import (
     Models,
     Outputs,
     encode,
+    encode_modality,
     load_models,
     save_models,
     train_all,
@@ -53,6 +54,8 @@ from scenes.errors import UserInputError
 from simulator.files import write_atomic
 
 VARIANTS = ("clean", "standard", "all_spec", "iq")
+NOISE_STREAMS = ("audio", "video", "rf_spec", "rf_iq")
+MODALITY_STREAMS = {"audio": ("audio",), "video": ("video",), "rf": ("rf_spec", "rf_iq")}
 
 
 # ------------------------------------------------------------------------------------------
@@ -105,33 +108,52 @@ class Context:
         return _noise_kwargs(self.cfg, self.prep, variant)
 
     def outputs(self, variant: str, seed: int, split: str = "test", run: int = 0, **override) -> Outputs:
-        """Per-modality outputs of a split under a noise variant and seed, for training run ``run`` (cached)."""
+        """Per-modality outputs of a split under a noise variant and seed, for training run ``run`` (cached).
+
+        ``override`` gives stream -> noise entries instead of the variant's. Each modality is encoded
+        once per (its own noise entries, seed, run): an untouched modality reuses the clean outputs,
+        and variants that share a modality's noise (standard, all_spec and iq share audio and video)
+        share its degraded inputs and encoding."""
         key = (variant, seed, split, run, tuple(sorted((k, repr(v)) for k, v in override.items())))
         if key in self.cache:
             return self.cache[key]
-        kw = self.noise_kwargs(variant) if not override else {"rf_range_db": self.prep.rf_range_db,
-                                                              "rf_config": self.prep.rf_config, **override}
-        pkey = ("inputs", variant, seed, split, key[-1])
-        parts = self.cache.get(pkey)
-        if parts is None:
-            parts = [degrade_clip(self.prep.clips[i], i, seed, **kw) for i in self.prep.split[split]]
-            parts = (np.concatenate([p.mfcc for p in parts]), np.concatenate([p.video for p in parts]),
-                     np.concatenate([p.rf for p in parts]))
-            self.cache[pkey] = parts
-        only = tuple(m for m in MODALITIES if not override or any(
-            k in override for k in {"audio": ("audio",), "video": ("video",), "rf": ("rf_spec", "rf_iq")}[m]))
-        out = encode(self.models[run], *parts, only=only)
-        if override:
-            base = self.outputs("clean", 0, split, run)
-            for m, modality in enumerate(MODALITIES):
-                if modality in only:
-                    base = base.replace(m, out)
-            out = base
-        if variant == "clean" and not override:
-            for s in self.cfg.protocol.noise_seeds:
-                self.cache[("clean", s, split, run, ())] = out
+        noise = {k: v for k, v in (override or self.noise_kwargs(variant)).items()
+                 if k in NOISE_STREAMS and v}
+        clean = self.cache.get(("clean", 0, split, run, ())) if noise else None
+        per = []
+        for m, modality in enumerate(MODALITIES):
+            mine = {k: v for k, v in noise.items() if k in MODALITY_STREAMS[modality]}
+            if not mine and clean is not None:
+                per.append((clean.logit[m], clean.alpha[m], clean.emb[m]))
+            else:
+                per.append(self._modality_outputs(modality, mine, seed if mine else 0, split, run))
+        out = Outputs(*(np.stack(arrays) for arrays in zip(*per)))
+        if not noise:                   # clean outputs serve every seed (0 is the canonical key)
+            self.cache_clean(out, split, run)
         self.cache[key] = out
         return out
+
+    def cache_clean(self, out: Outputs, split: str, run: int) -> None:
+        """Cache clean outputs under every seed's key (noise-free outputs do not depend on it)."""
+        for s in (0, *self.cfg.protocol.noise_seeds):
+            self.cache[("clean", s, split, run, ())] = out
+
+    def _modality_outputs(self, modality: str, noise: dict, seed: int, split: str, run: int) -> tuple:
+        """(logit, alpha, emb) of one modality under its own noise entries (cached per run; the
+        degraded inputs are cached across runs until drop_inputs)."""
+        desc = tuple(sorted((k, repr(v)) for k, v in noise.items()))
+        key = ("modality", modality, seed, split, run, desc)
+        if key not in self.cache:
+            pkey = ("inputs", modality, seed, split, desc)
+            x = self.cache.get(pkey)
+            if x is None:
+                kw = {"rf_range_db": self.prep.rf_range_db, "rf_config": self.prep.rf_config, **noise}
+                field_name = {"audio": "mfcc", "video": "video", "rf": "rf"}[modality]
+                x = np.concatenate([getattr(degrade_clip(self.prep.clips[i], i, seed, **kw), field_name)
+                                    for i in self.prep.split[split]])
+                self.cache[pkey] = x
+            self.cache[key] = encode_modality(self.models[run], modality, x)
+        return self.cache[key]
 
     def drop_inputs(self) -> None:
         """Free cached degraded inputs (outputs stay cached)."""
@@ -326,10 +348,12 @@ def stage_evaluate(ctx: Context) -> dict:
     skipped = [{"condition": c.key, "reason": "dataset has no rf_iq/ captures (I/Q-level noise impossible)"}
                for c in CONDITIONS if c not in conds]
     # groups of jobs that share degraded inputs: the clean variant once (its outputs serve every
-    # seed), every other variant per noise seed; each group covers every training run
-    groups = [(v, tuple(cfg.protocol.noise_seeds) if v == "clean" else (s,)) for v in VARIANTS
-              for s in (cfg.protocol.noise_seeds[:1] if v == "clean" else cfg.protocol.noise_seeds)
-              if any(c.variant == v for c in conds)]
+    # seed), then per noise seed every noisy variant (they share the audio and video noise, so
+    # those are degraded and encoded once per seed); each group covers every training run
+    used = [v for v in VARIANTS if any(c.variant == v for c in conds)]
+    noisy = tuple(v for v in used if v != "clean")
+    groups = ([(("clean",), tuple(cfg.protocol.noise_seeds))] if "clean" in used else []) + \
+        ([((noisy, (s,))) for s in cfg.protocol.noise_seeds] if noisy else [])
     per: dict[str, list[dict]] = {c.key: [] for c in conds}
     correct: dict[str, list[np.ndarray]] = {c.key: [] for c in conds}
     preds0: dict[str, Prediction] = {}
@@ -337,6 +361,8 @@ def stage_evaluate(ctx: Context) -> dict:
     for group in groups:                                   # accumulate in job order (deterministic)
         for variant, seed, run, out, items in results[group]:
             ctx.cache[(variant, seed, "test", run, ())] = out
+            if variant == "clean":
+                ctx.cache_clean(out, "test", run)
             for key, m, ok, pred in items:
                 per[key].append(m)
                 correct[key].append(ok)
@@ -387,15 +413,15 @@ _FORKED_CTX: dict = {}  # the context a forked evaluation worker inherits (never
 
 
 def _evaluate_group(group: tuple, extra: tuple) -> tuple[tuple, list]:
-    """Every condition of one variant under its noise seeds and every training run (in a worker)."""
+    """Every condition of the group's variants under its noise seeds and every training run (in a worker)."""
     ctx = _FORKED_CTX["ctx"]
     conds, y, cid, gate = extra
     cfg = ctx.cfg
-    variant, seeds = group
+    variants, seeds = group
     torch.set_num_threads(cfg.models.torch_threads)
     rows = []
     for seed in seeds:
-        for run in ctx.runs:
+        for run, variant in [(r, v) for r in ctx.runs for v in variants]:
             out = ctx.outputs(variant, seed, run=run)
             items = []
             for c in conds:
@@ -424,6 +450,13 @@ def _map_groups(ctx: Context, groups: list, extra: tuple, label: str, job=None):
             yield result
     finally:
         _FORKED_CTX.clear()
+
+
+def warm_clean(ctx: Context) -> None:
+    """Compute every run's clean test outputs here (no-op when cached), so forked jobs inherit them
+    instead of each recomputing them."""
+    for run in ctx.runs:
+        ctx.outputs("clean", 0, run=run)
 
 
 def _clean_correct(ctx: Context, modality: str, y: np.ndarray) -> np.ndarray:
@@ -484,6 +517,7 @@ def stage_sweep(ctx: Context) -> dict:
     sc = cfg.sweep
     seeds = cfg.protocol.noise_seeds[: sc.n_seeds or None]
     jobs = [(m, s) for m in MODALITIES for s in sc.severities]
+    warm_clean(ctx)
     results = dict(_map_groups(ctx, jobs, (seeds,), "degradation sweep", job=_sweep_job))
     rows = [row for job in jobs for row in results[job]]   # in job order (deterministic)
     write_csv(ctx.run_dir / "sweep.csv", rows)
@@ -610,11 +644,9 @@ def stage_conflict(ctx: Context) -> dict:
     t0 = time.perf_counter()
     cc = ctx.cfg.conflict
     progs = list(cc.swaps)
-    if ctx.progress:
-        from rich.progress import track
-
-        progs = track(progs, description="conflict study", total=len(progs))
-    rows = [_swap_program(ctx, p) for p in progs]
+    warm_clean(ctx)
+    results = dict(_map_groups(ctx, list(range(len(progs))), (progs,), "conflict study", job=_conflict_job))
+    rows = [results[k] for k in range(len(progs))]          # in program order (deterministic)
     legacy = [_legacy_program(ctx, name) for name in cc.programs]
     decisive = [r["program"] for r in rows if r.get("ds_average_disagree_rate", 0.0) > 0.0]
     result = {"programs": rows, "legacy_programs": legacy,
@@ -627,6 +659,14 @@ def stage_conflict(ctx: Context) -> dict:
     write_csv(ctx.run_dir / "conflict.csv", flat)
     mark_stage(ctx.run_dir, "conflict", time.perf_counter() - t0)
     return result
+
+
+def _conflict_job(k: int, extra: tuple) -> tuple[int, dict]:
+    """The realised effect of program ``k`` (in a worker)."""
+    ctx = _FORKED_CTX["ctx"]
+    (progs,) = extra
+    torch.set_num_threads(ctx.cfg.models.torch_threads)
+    return k, _swap_program(ctx, progs[k])
 
 
 def _legacy_program(ctx: Context, program: str) -> dict:
