@@ -47,7 +47,14 @@ precompile() {
 import importlib
 import pkgutil
 
-names = ["torch._dynamo", "torch.optim", "librosa.feature", "pytest", "hypothesis", "xdist", "ray"]
+# the package imports most dependencies lazily (inside functions), so name what it uses
+names = ["torch", "torch._dynamo", "torch.optim", "scipy.signal", "scipy.ndimage", "scipy.fft", "scipy.stats",
+         "scipy.optimize", "scipy.interpolate", "scipy.special", "scipy.spatial", "sklearn.linear_model",
+         "sklearn.neighbors", "sklearn.metrics", "sklearn.model_selection", "colour", "matplotlib.pyplot",
+         "pandas", "numba", "librosa", "librosa.feature.spectral", "librosa.core.spectrum", "librosa.filters",
+         "mitsuba", "mitsuba.python.ad.integrators", "drjit", "cv2", "pvlib", "sigmf", "simplejpeg", "soundfile", "pycocotools.coco",
+         "pycocotools.cocoeval", "filterpy.kalman", "motmetrics", "trackeval", "pydantic", "yaml", "typer",
+         "rich.progress", "pytest", "hypothesis", "xdist", "webdataset", "torchmetrics", "ray"]
 for top in ("scenes", "simulator", "degradations", "evids"):
     names += [m.name for m in pkgutil.walk_packages(importlib.import_module(top).__path__, top + ".")]
 for name in names:
