@@ -83,25 +83,22 @@ def psf_kernel(pixel_pitch_um: float, f_number: float, wavelength_um: float, def
 
 
 class KernelFilter:
-    """Convolution of (H, W) images with a centred odd kernel by FFT (edges reflected); the
-    kernel's spectrum is computed once per image shape."""
+    """Convolution of (H, W) images with a centred odd kernel, edges mirrored (numpy ``reflect``,
+    scipy.ndimage ``mirror``, OpenCV ``BORDER_REFLECT_101``), in float32 by OpenCV's filter2D: direct
+    summation for small kernels (the RGB PSFs), by DFT for large ones (OpenCV switches at 130 taps
+    for float32; the 35x35 LWIR PSF). Equal to ``scipy.ndimage.convolve(mode='mirror')`` to float32
+    rounding, and independent of OpenCV's thread count (both tested)."""
 
     def __init__(self, kernel: np.ndarray):
         self.kernel = kernel
         self.radius = kernel.shape[0] // 2
-        self._spectra: dict[tuple[int, int], np.ndarray] = {}
+        self._taps = np.ascontiguousarray(kernel[::-1, ::-1], dtype=np.float32)   # filter2D correlates
 
     def __call__(self, image: np.ndarray) -> np.ndarray:
-        from scipy import fft
+        import cv2
 
-        r = self.radius
-        h, w = image.shape
-        shape = (fft.next_fast_len(h + 2 * r, real=True), fft.next_fast_len(w + 2 * r, real=True))
-        padded = np.pad(image.astype(np.float32), ((r, shape[0] - h - r), (r, shape[1] - w - r)), mode="reflect")
-        if shape not in self._spectra:
-            self._spectra[shape] = fft.rfft2(self.kernel.astype(np.float32), s=shape)
-        out = fft.irfft2(fft.rfft2(padded) * self._spectra[shape], s=shape)
-        return out[2 * r:2 * r + h, 2 * r:2 * r + w]
+        return cv2.filter2D(np.ascontiguousarray(image, dtype=np.float32), -1, self._taps,
+                            borderType=cv2.BORDER_REFLECT_101 | cv2.BORDER_ISOLATED)
 
 
 # --- motion ---------------------------------------------------------------------------------------
@@ -116,15 +113,34 @@ def trail_weights(length_samples: int, kind: str, time_constant_s: float, window
     return frac, w / w.sum()
 
 
-def blur_along(window: np.ndarray, displacement_px: np.ndarray, frac: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Sum of the window shifted back along its motion (displacement over the integration window)."""
-    from scipy.ndimage import shift
+def trail_kernel(displacement_px: np.ndarray, frac: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """The motion trail as one correlation kernel K (odd in both axes, centred, float32):
+    sum_s weights[s] x the bilinear-interpolation stencil of the offset displacement_px x frac[s]
+    (x, y), so that correlating with K (out[p] = sum_o K[o] in[p + o]) equals summing the weighted
+    bilinear shifts of ``blur_along``'s definition. Its weights sum to sum(weights)."""
+    offsets = displacement_px[None, :] * frac[:, None]                 # (S, 2) as (x, y), px
+    whole = np.floor(offsets)
+    t = offsets - whole                                                # bilinear fractions
+    rx, ry = (int(np.max(np.abs(whole[:, i]))) + 1 for i in (0, 1))
+    kernel = np.zeros((2 * ry + 1, 2 * rx + 1))
+    ix, iy = whole[:, 0].astype(int) + rx, whole[:, 1].astype(int) + ry
+    for dy, wy in ((0, 1 - t[:, 1]), (1, t[:, 1])):
+        for dx, wx in ((0, 1 - t[:, 0]), (1, t[:, 0])):
+            np.add.at(kernel, (iy + dy, ix + dx), weights * wy * wx)
+    return kernel.astype(np.float32)
 
-    out = np.zeros_like(window, dtype=np.float64)
-    for f, w in zip(frac, weights):
-        dx, dy = -displacement_px * f
-        out += w * shift(window.astype(np.float64), (dy, dx), order=1, mode="nearest")
-    return out
+
+def blur_along(window: np.ndarray, displacement_px: np.ndarray, frac: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Sum of the window shifted back along its motion (displacement over the integration window):
+    sum_s weights[s] x (window bilinearly shifted by -displacement_px x frac[s], edges replicated),
+    i.e. scipy.ndimage.shift(order=1, mode='nearest') per sample. Computed in float32 as one
+    correlation with ``trail_kernel`` (OpenCV filter2D, the window's own edges replicated), equal to
+    the per-sample shifts to float32 rounding (tested). (H, W) or (H, W, C) windows."""
+    import cv2
+
+    kernel = trail_kernel(np.asarray(displacement_px, dtype=np.float64), frac, weights)
+    return cv2.filter2D(np.ascontiguousarray(window, dtype=np.float32), -1, kernel,
+                        borderType=cv2.BORDER_REPLICATE | cv2.BORDER_ISOLATED)
 
 
 @dataclass
@@ -181,11 +197,7 @@ def motion_blur(image: np.ndarray, motion: _Motion, frame: int, fraction_of_fram
                                       fraction_of_frame * frame_period_s)
         if out is image:
             out = image.copy()
-        win = out[y0:y1, x0:x1]
-        if win.ndim == 3:
-            out[y0:y1, x0:x1] = np.stack([blur_along(win[..., c], disp, frac, weights) for c in range(win.shape[2])], -1)
-        else:
-            out[y0:y1, x0:x1] = blur_along(win, disp, frac, weights)
+        out[y0:y1, x0:x1] = blur_along(out[y0:y1, x0:x1], disp, frac, weights)
     return out
 
 
@@ -205,6 +217,17 @@ def agc(kelvin: np.ndarray, mode: str) -> np.ndarray:
     return np.rint(below[inverse] * scale).astype(np.uint8).reshape(kelvin.shape)
 
 
+def equalise_counts(counts: np.ndarray) -> np.ndarray:
+    """``agc(counts x kelvin_per_count, 'histogram')`` from the integer counts: a histogram of the
+    levels instead of np.unique's sort. Identical, because counts -> kelvin is strictly increasing
+    in float32 (counts < 2^16 differ by more than float32's 2^-24 relative spacing)."""
+    flat = counts.ravel()
+    per_level = np.bincount(flat)
+    below = np.cumsum(per_level) - per_level                 # pixels colder than each level
+    scale = 255.0 / max(int(below[-1]), 1)                   # the hottest level present is the last bin
+    return np.rint(below * scale).astype(np.uint8)[flat].reshape(counts.shape)
+
+
 def shot_noise(electrons: np.ndarray, rng: np.random.Generator, read_noise_e: float = 0.0) -> np.ndarray:
     """Photo-electron counts with shot (Poisson) and read (Gaussian, rms read_noise_e) noise.
 
@@ -215,7 +238,8 @@ def shot_noise(electrons: np.ndarray, rng: np.random.Generator, read_noise_e: fl
     lam = np.asarray(electrons, dtype=np.float32)
     if float(lam.min()) >= POISSON_EXACT_BELOW_E:
         out = rng.standard_normal(lam.shape, dtype=np.float32)
-        out *= np.sqrt(lam + np.float32(read_noise_e ** 2))
+        sigma = lam + np.float32(read_noise_e ** 2)
+        out *= np.sqrt(sigma, out=sigma)
         out += lam
         return out
     out = rng.poisson(np.minimum(lam, 1e12)).astype(np.float32)
@@ -263,10 +287,10 @@ class ThermalSensor:
         if self.params.time_constant_s > 0:
             x = motion_blur(x, self.motion, frame, 1.0, "exponential", self.params.time_constant_s,
                             self.frame_period_s, self.kernel.shape[0] // 2)
-        if self._state is None:
-            self._state = x
-        else:
-            self._state = self.lag_alpha * x + (1.0 - self.lag_alpha) * self._state
+        if self._state is not None:                   # a x + (1 - a) state, into x (ours; the old state stays as returned)
+            x *= np.float32(self.lag_alpha)
+            x += np.float32(1.0 - self.lag_alpha) * self._state
+        self._state = x
         return self._state
 
     def record(self, frame: int, radiance: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -280,6 +304,8 @@ class ThermalSensor:
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["thermal"], NOISE_STREAM, frame)
         kelvin += np.float32(p.netd_k) * rng.standard_normal(kelvin.shape, dtype=np.float32)
         counts = np.clip(np.rint(kelvin / p.kelvin_per_count), 0, 2 ** p.adc_bits - 1).astype(np.uint16)
+        if p.agc == "histogram":                      # = agc(counts x kelvin_per_count, 'histogram')
+            return kelvin, counts, equalise_counts(counts)
         shown = counts.astype(np.float32) * np.float32(p.kelvin_per_count)
         return kelvin, counts, agc(shown, p.agc)
 
@@ -334,9 +360,8 @@ class RgbSensor:
 
     def record(self, frame: int, rgb_linear: np.ndarray) -> np.ndarray:
         p = self.params
-        x = np.empty(rgb_linear.shape, np.float32)
-        for c in range(3):
-            x[..., c] = self.optics[c](rgb_linear[..., c])
+        planes = np.ascontiguousarray(np.moveaxis(rgb_linear, -1, 0), dtype=np.float32)   # (3, H, W)
+        x = np.stack([self.optics[c](planes[c]) for c in range(3)], axis=-1)
         x = motion_blur(x, self.motion, frame, self.exposure_time_s / self.frame_period_s, "box", 0.0,
                         self.frame_period_s, self.kernels[0].shape[0] // 2)
         electrons = np.maximum(x, np.float32(0.0), dtype=np.float32)
@@ -347,7 +372,8 @@ class RgbSensor:
         noisy *= np.float32(levels / self.full_well_e)
         np.clip(noisy, 0.0, levels, out=noisy)
         noisy += np.float32(0.5)
-        return self.srgb_lut[noisy.astype(np.int32)]   # ADC level (rounded) -> sRGB 8-bit
+        level = noisy.astype(np.uint16)                # ADC level, rounded (<= 65535: adc_bits <= 16)
+        return self.srgb_lut.take(level.ravel()).reshape(level.shape)   # -> sRGB 8-bit
 
     @property
     def srgb_lut(self) -> np.ndarray:
