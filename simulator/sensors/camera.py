@@ -94,11 +94,27 @@ class KernelFilter:
         self.radius = kernel.shape[0] // 2
         self._taps = np.ascontiguousarray(kernel[::-1, ::-1], dtype=np.float32)   # filter2D correlates
 
-    def __call__(self, image: np.ndarray) -> np.ndarray:
+    def __call__(self, image: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The filtered image (float32), written into ``out`` (contiguous float32, image's shape) if given."""
         import cv2
 
-        return cv2.filter2D(np.ascontiguousarray(image, dtype=np.float32), -1, self._taps,
+        return cv2.filter2D(np.ascontiguousarray(image, dtype=np.float32), -1, self._taps, dst=out,
                             borderType=cv2.BORDER_REFLECT_101 | cv2.BORDER_ISOLATED)
+
+
+class Scratch:
+    """Work arrays reused from frame to frame (one sensor, one thread): on this class of VM every
+    fresh multi-MB temporary costs a page fault per 4 KiB page (~1 ms per 640x512x3 float32
+    array), more than the arithmetic on it. Never hand one of these arrays out."""
+
+    def __init__(self) -> None:
+        self._arrays: dict[str, np.ndarray] = {}
+
+    def __call__(self, name: str, shape: tuple[int, ...], dtype=np.float32) -> np.ndarray:
+        a = self._arrays.get(name)
+        if a is None or a.shape != tuple(shape) or a.dtype != dtype:
+            a = self._arrays[name] = np.empty(shape, dtype)
+        return a
 
 
 # --- motion ---------------------------------------------------------------------------------------
@@ -176,8 +192,9 @@ def _motion(timeline: Timeline, which: str) -> _Motion:
 
 
 def motion_blur(image: np.ndarray, motion: _Motion, frame: int, fraction_of_frame: float, kind: str,
-                time_constant_s: float, frame_period_s: float, margin_px: int) -> np.ndarray:
-    """Blur each target's neighbourhood along its image motion over the integration window."""
+                time_constant_s: float, frame_period_s: float, margin_px: int, in_place: bool = False) -> np.ndarray:
+    """Blur each target's neighbourhood along its image motion over the integration window (into
+    ``image`` itself with in_place, else into a copy made only if some target moves)."""
     out = image
     h, w = image.shape[:2]
     for t in range(motion.centre_px.shape[0]):
@@ -195,7 +212,7 @@ def motion_blur(image: np.ndarray, motion: _Motion, frame: int, fraction_of_fram
             continue
         frac, weights = trail_weights(int(np.ceil(2 * length)) + 2, kind, time_constant_s,
                                       fraction_of_frame * frame_period_s)
-        if out is image:
+        if out is image and not in_place:
             out = image.copy()
         out[y0:y1, x0:x1] = blur_along(out[y0:y1, x0:x1], disp, frac, weights)
     return out
@@ -228,17 +245,21 @@ def equalise_counts(counts: np.ndarray) -> np.ndarray:
     return np.rint(below * scale).astype(np.uint8)[flat].reshape(counts.shape)
 
 
-def shot_noise(electrons: np.ndarray, rng: np.random.Generator, read_noise_e: float = 0.0) -> np.ndarray:
+def shot_noise(electrons: np.ndarray, rng: np.random.Generator, read_noise_e: float = 0.0,
+               out: np.ndarray | None = None, work: np.ndarray | None = None) -> np.ndarray:
     """Photo-electron counts with shot (Poisson) and read (Gaussian, rms read_noise_e) noise.
 
     At or above POISSON_EXACT_BELOW_E electrons everywhere, one normal draw with variance
     n + read^2 (the normal approximation of the Poisson term, skewness 1/sqrt(n) < 3 %, plus the
     independent Gaussian read noise); otherwise exact Poisson draws and a separate read-noise draw.
+    ``out`` and ``work`` (float32, electrons' shape) are optional buffers for the normal case (the
+    draws are the same as into a fresh array).
     """
     lam = np.asarray(electrons, dtype=np.float32)
     if float(lam.min()) >= POISSON_EXACT_BELOW_E:
-        out = rng.standard_normal(lam.shape, dtype=np.float32)
-        sigma = lam + np.float32(read_noise_e ** 2)
+        out = rng.standard_normal(dtype=np.float32, out=out) if out is not None else \
+            rng.standard_normal(lam.shape, dtype=np.float32)
+        sigma = np.add(lam, np.float32(read_noise_e ** 2), out=work)
         out *= np.sqrt(sigma, out=sigma)
         out += lam
         return out
@@ -280,16 +301,17 @@ class ThermalSensor:
         self.column_offset_k = (p.fpn_column_offset_k * rng.standard_normal(p.width_px)).astype(np.float64)
         self._gain_row = (1.0 + self.column_gain[None, :]).astype(np.float32)
         self._offset_row = (self.nuc_reference_k + self.column_offset_k[None, :]).astype(np.float32)
+        self._scratch = Scratch()
 
     def detector_radiance(self, frame: int, radiance: np.ndarray) -> np.ndarray:
         """Optics + in-frame motion + bolometer lag, in W sr^-1 m^-2 (no noise)."""
         x = self.optics(radiance)
         if self.params.time_constant_s > 0:
-            x = motion_blur(x, self.motion, frame, 1.0, "exponential", self.params.time_constant_s,
-                            self.frame_period_s, self.kernel.shape[0] // 2)
+            motion_blur(x, self.motion, frame, 1.0, "exponential", self.params.time_constant_s,
+                        self.frame_period_s, self.kernel.shape[0] // 2, in_place=True)
         if self._state is not None:                   # a x + (1 - a) state, into x (ours; the old state stays as returned)
             x *= np.float32(self.lag_alpha)
-            x += np.float32(1.0 - self.lag_alpha) * self._state
+            x += np.multiply(self._state, np.float32(1.0 - self.lag_alpha), out=self._scratch("lag", x.shape))
         self._state = x
         return self._state
 
@@ -302,11 +324,15 @@ class ThermalSensor:
         kelvin *= self._gain_row
         kelvin += self._offset_row
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["thermal"], NOISE_STREAM, frame)
-        kelvin += np.float32(p.netd_k) * rng.standard_normal(kelvin.shape, dtype=np.float32)
-        counts = np.clip(np.rint(kelvin / p.kelvin_per_count), 0, 2 ** p.adc_bits - 1).astype(np.uint16)
+        noise = rng.standard_normal(dtype=np.float32, out=self._scratch("noise", kelvin.shape))
+        noise *= np.float32(p.netd_k)
+        kelvin += noise
+        level = np.divide(kelvin, p.kelvin_per_count, out=self._scratch("level", kelvin.shape))
+        np.rint(level, out=level)
+        counts = np.clip(level, 0, 2 ** p.adc_bits - 1, out=level).astype(np.uint16)
         if p.agc == "histogram":                      # = agc(counts x kelvin_per_count, 'histogram')
             return kelvin, counts, equalise_counts(counts)
-        shown = counts.astype(np.float32) * np.float32(p.kelvin_per_count)
+        shown = np.multiply(counts, np.float32(p.kelvin_per_count), out=level, dtype=np.float32)
         return kelvin, counts, agc(shown, p.agc)
 
     def metadata(self) -> dict:
@@ -347,6 +373,7 @@ class RgbSensor:
                                    * self.exposure_time_s * self.bin_area)
         self.needed_exposure_s = float(needed_s)
         self.motion = _motion(self.timeline, "rgb")
+        self._scratch = Scratch()
 
     def electrons_per_s_per_native_pixel(self, radiance_per_nm: float) -> float:
         """Photo-electron rate of a native pixel looking at a scene of this spectral radiance
@@ -358,21 +385,37 @@ class RgbSensor:
         photon_j = PLANCK_H * LIGHT_C / (RGB_WAVELENGTHS_UM[1] * 1e-6)
         return float(power / photon_j * p.quantum_efficiency)
 
+    def focal_plane(self, frame: int, rgb_linear: np.ndarray) -> np.ndarray:
+        """Optics (per channel) then motion blur: the exposed linear image on the sensor, (H, W, 3)
+        float32 in a work array (valid until the next call)."""
+        import cv2
+
+        h, w, n = rgb_linear.shape
+        planes = self._scratch("planes", (n, h, w))                    # channel planes: filter2D input
+        np.copyto(planes, np.moveaxis(rgb_linear, -1, 0), casting="unsafe")
+        blurred = self._scratch("optics", (n, h, w))
+        for c in range(n):
+            self.optics[c](planes[c], out=blurred[c])
+        x = cv2.merge(list(blurred), dst=self._scratch("focal", (h, w, n)))   # interleave again
+        return motion_blur(x, self.motion, frame, self.exposure_time_s / self.frame_period_s, "box", 0.0,
+                           self.frame_period_s, self.kernels[0].shape[0] // 2, in_place=True)
+
     def record(self, frame: int, rgb_linear: np.ndarray) -> np.ndarray:
+        """Exposed linear RGB (the renderer's units) -> recorded sRGB 8-bit (H, W, 3)."""
         p = self.params
-        planes = np.ascontiguousarray(np.moveaxis(rgb_linear, -1, 0), dtype=np.float32)   # (3, H, W)
-        x = np.stack([self.optics[c](planes[c]) for c in range(3)], axis=-1)
-        x = motion_blur(x, self.motion, frame, self.exposure_time_s / self.frame_period_s, "box", 0.0,
-                        self.frame_period_s, self.kernels[0].shape[0] // 2)
-        electrons = np.maximum(x, np.float32(0.0), dtype=np.float32)
+        electrons = self.focal_plane(frame, rgb_linear)
+        np.maximum(electrons, np.float32(0.0), out=electrons)
         electrons *= np.float32(self.electrons_per_unit)
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["rgb"], NOISE_STREAM, frame)
-        noisy = shot_noise(electrons, rng, self.read_noise_e)
+        h, w, n = electrons.shape
+        work = self._scratch("planes", (n, h, w)).reshape(h, w, n)     # the planes are consumed by now
+        noisy = shot_noise(electrons, rng, self.read_noise_e, out=self._scratch("noise", electrons.shape), work=work)
         levels = 2 ** p.adc_bits - 1
         noisy *= np.float32(levels / self.full_well_e)
         np.clip(noisy, 0.0, levels, out=noisy)
         noisy += np.float32(0.5)
-        level = noisy.astype(np.uint16)                # ADC level, rounded (<= 65535: adc_bits <= 16)
+        level = self._scratch("level", noisy.shape, np.uint16)        # ADC level, rounded (adc_bits <= 16)
+        np.copyto(level, noisy, casting="unsafe")
         return self.srgb_lut.take(level.ravel()).reshape(level.shape)   # -> sRGB 8-bit
 
     @property

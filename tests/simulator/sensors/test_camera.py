@@ -302,3 +302,23 @@ def test_equalise_counts_is_histogram_agc_of_the_shown_temperatures(kelvin_per_c
     assert np.array_equal(cam.equalise_counts(counts), cam.agc(shown, "histogram"))
     flat = np.full((8, 9), 1234, np.uint16)
     assert np.array_equal(cam.equalise_counts(flat), cam.agc(flat.astype(np.float32) * np.float32(0.01), "histogram"))
+
+
+@pytest.mark.parametrize("agc_mode", ["minmax", "histogram"])
+def test_recorded_frames_are_fresh_arrays_not_reused_work_arrays(agc_mode):
+    tl = _timeline(frames=4, agc=agc_mode)
+    model = cam.CameraModel(tl, render_exposure=30.0)
+    rng = np.random.default_rng(6)
+    inputs = [((0.2 + 0.1 * rng.random((48, 64, 3))).astype(np.float32),
+               _flat_thermal(tl) * (1 + 0.01 * rng.random((48, 64))).astype(np.float32),
+               np.full((48, 64), 300.0, np.float32)) for _ in range(3)]
+    first = model.record(0, *inputs[0])
+    kept = {k: getattr(first, k).copy() for k in ("rgb8", "thermal_counts", "thermal_agc8", "thermal_kelvin")}
+    later = [model.record(i, *inputs[i]) for i in (1, 2)]
+    for k, v in kept.items():
+        assert np.array_equal(getattr(first, k), v)                     # not overwritten by later frames
+        assert not any(np.shares_memory(getattr(first, k), getattr(r, k)) for r in later)
+    fresh = cam.CameraModel(tl, render_exposure=30.0)                   # same frames from a new model
+    again = [fresh.record(i, *inputs[i]) for i in range(3)]
+    for a, b in zip([first, *later], again):
+        assert a.rgb8.tobytes() == b.rgb8.tobytes() and a.thermal_counts.tobytes() == b.thermal_counts.tobytes()
