@@ -228,7 +228,7 @@ def _mirror_convolve_reference(image, kernel):
 
 
 @pytest.mark.parametrize("kernel_args", [(9.64, 2.8, 0.55, 0.0), (9.64, 2.8, 0.465, 0.0),   # RGB: direct
-                                         (12.0, 1.0, 10.0, 0.0), (12.0, 1.0, 10.0, 24.0)])  # LWIR: DFT
+                                         (12.0, 1.0, 10.0, 0.0), (12.0, 1.0, 10.0, 24.0)])  # LWIR: FFT
 def test_kernel_filter_equals_the_mirrored_spatial_convolution(kernel_args):
     kernel = cam.psf_kernel(*kernel_args)
     rng = np.random.default_rng(1)
