@@ -83,25 +83,63 @@ def psf_kernel(pixel_pitch_um: float, f_number: float, wavelength_um: float, def
 
 
 class KernelFilter:
-    """Convolution of (H, W) images with a centred odd kernel by FFT (edges reflected); the
-    kernel's spectrum is computed once per image shape."""
+    """Convolution of (H, W) images with a centred odd kernel, edges mirrored (numpy ``reflect``,
+    scipy.ndimage ``mirror``, OpenCV ``BORDER_REFLECT_101``), in float32: small kernels (the RGB
+    PSFs) by direct summation (OpenCV filter2D), large ones (the 35x35 LWIR PSF) by FFT (scipy.fft,
+    single-threaded; the kernel's spectrum is computed once per image shape), whichever measured
+    faster. Equal to ``scipy.ndimage.convolve(mode='mirror')`` to float32 rounding (tested)."""
+
+    DIRECT_MAX_TAPS = 129                              # OpenCV itself switches to a DFT at 130 taps
 
     def __init__(self, kernel: np.ndarray):
         self.kernel = kernel
         self.radius = kernel.shape[0] // 2
+        self._taps = np.ascontiguousarray(kernel[::-1, ::-1], dtype=np.float32)   # filter2D correlates
         self._spectra: dict[tuple[int, int], np.ndarray] = {}
 
-    def __call__(self, image: np.ndarray) -> np.ndarray:
+    def __call__(self, image: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The filtered image (float32), written into ``out`` (contiguous float32, image's shape) if given."""
+        import cv2
+
+        image = np.ascontiguousarray(image, dtype=np.float32)
+        if self.kernel.size <= self.DIRECT_MAX_TAPS:
+            return cv2.filter2D(image, -1, self._taps, dst=out,
+                                borderType=cv2.BORDER_REFLECT_101 | cv2.BORDER_ISOLATED)
+        filtered = self._by_fft(image)
+        if out is None:
+            return filtered
+        np.copyto(out, filtered)
+        return out
+
+    def _by_fft(self, image: np.ndarray) -> np.ndarray:
+        """Linear convolution by a real FFT of the mirrored-padded image (no wrap-around)."""
+        import cv2
         from scipy import fft
 
         r = self.radius
         h, w = image.shape
         shape = (fft.next_fast_len(h + 2 * r, real=True), fft.next_fast_len(w + 2 * r, real=True))
-        padded = np.pad(image.astype(np.float32), ((r, shape[0] - h - r), (r, shape[1] - w - r)), mode="reflect")
+        padded = cv2.copyMakeBorder(image, r, shape[0] - h - r, r, shape[1] - w - r, cv2.BORDER_REFLECT_101)
         if shape not in self._spectra:
             self._spectra[shape] = fft.rfft2(self.kernel.astype(np.float32), s=shape)
-        out = fft.irfft2(fft.rfft2(padded) * self._spectra[shape], s=shape)
-        return out[2 * r:2 * r + h, 2 * r:2 * r + w]
+        spectrum = fft.rfft2(padded)
+        spectrum *= self._spectra[shape]
+        return fft.irfft2(spectrum, s=shape)[2 * r:2 * r + h, 2 * r:2 * r + w]
+
+
+class Scratch:
+    """Work arrays reused from frame to frame (one sensor, one thread): on this class of VM every
+    fresh multi-MB temporary costs a page fault per 4 KiB page (~1 ms per 640x512x3 float32
+    array), more than the arithmetic on it. Never hand one of these arrays out."""
+
+    def __init__(self) -> None:
+        self._arrays: dict[str, np.ndarray] = {}
+
+    def __call__(self, name: str, shape: tuple[int, ...], dtype=np.float32) -> np.ndarray:
+        a = self._arrays.get(name)
+        if a is None or a.shape != tuple(shape) or a.dtype != dtype:
+            a = self._arrays[name] = np.empty(shape, dtype)
+        return a
 
 
 # --- motion ---------------------------------------------------------------------------------------
@@ -116,15 +154,34 @@ def trail_weights(length_samples: int, kind: str, time_constant_s: float, window
     return frac, w / w.sum()
 
 
-def blur_along(window: np.ndarray, displacement_px: np.ndarray, frac: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Sum of the window shifted back along its motion (displacement over the integration window)."""
-    from scipy.ndimage import shift
+def trail_kernel(displacement_px: np.ndarray, frac: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """The motion trail as one correlation kernel K (odd in both axes, centred, float32):
+    sum_s weights[s] x the bilinear-interpolation stencil of the offset displacement_px x frac[s]
+    (x, y), so that correlating with K (out[p] = sum_o K[o] in[p + o]) equals summing the weighted
+    bilinear shifts of ``blur_along``'s definition. Its weights sum to sum(weights)."""
+    offsets = displacement_px[None, :] * frac[:, None]                 # (S, 2) as (x, y), px
+    whole = np.floor(offsets)
+    t = offsets - whole                                                # bilinear fractions
+    rx, ry = (int(np.max(np.abs(whole[:, i]))) + 1 for i in (0, 1))
+    kernel = np.zeros((2 * ry + 1, 2 * rx + 1))
+    ix, iy = whole[:, 0].astype(int) + rx, whole[:, 1].astype(int) + ry
+    for dy, wy in ((0, 1 - t[:, 1]), (1, t[:, 1])):
+        for dx, wx in ((0, 1 - t[:, 0]), (1, t[:, 0])):
+            np.add.at(kernel, (iy + dy, ix + dx), weights * wy * wx)
+    return kernel.astype(np.float32)
 
-    out = np.zeros_like(window, dtype=np.float64)
-    for f, w in zip(frac, weights):
-        dx, dy = -displacement_px * f
-        out += w * shift(window.astype(np.float64), (dy, dx), order=1, mode="nearest")
-    return out
+
+def blur_along(window: np.ndarray, displacement_px: np.ndarray, frac: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Sum of the window shifted back along its motion (displacement over the integration window):
+    sum_s weights[s] x (window bilinearly shifted by -displacement_px x frac[s], edges replicated),
+    i.e. scipy.ndimage.shift(order=1, mode='nearest') per sample. Computed in float32 as one
+    correlation with ``trail_kernel`` (OpenCV filter2D, the window's own edges replicated), equal to
+    the per-sample shifts to float32 rounding (tested). (H, W) or (H, W, C) windows."""
+    import cv2
+
+    kernel = trail_kernel(np.asarray(displacement_px, dtype=np.float64), frac, weights)
+    return cv2.filter2D(np.ascontiguousarray(window, dtype=np.float32), -1, kernel,
+                        borderType=cv2.BORDER_REPLICATE | cv2.BORDER_ISOLATED)
 
 
 @dataclass
@@ -160,8 +217,9 @@ def _motion(timeline: Timeline, which: str) -> _Motion:
 
 
 def motion_blur(image: np.ndarray, motion: _Motion, frame: int, fraction_of_frame: float, kind: str,
-                time_constant_s: float, frame_period_s: float, margin_px: int) -> np.ndarray:
-    """Blur each target's neighbourhood along its image motion over the integration window."""
+                time_constant_s: float, frame_period_s: float, margin_px: int, in_place: bool = False) -> np.ndarray:
+    """Blur each target's neighbourhood along its image motion over the integration window (into
+    ``image`` itself with in_place, else into a copy made only if some target moves)."""
     out = image
     h, w = image.shape[:2]
     for t in range(motion.centre_px.shape[0]):
@@ -179,13 +237,9 @@ def motion_blur(image: np.ndarray, motion: _Motion, frame: int, fraction_of_fram
             continue
         frac, weights = trail_weights(int(np.ceil(2 * length)) + 2, kind, time_constant_s,
                                       fraction_of_frame * frame_period_s)
-        if out is image:
+        if out is image and not in_place:
             out = image.copy()
-        win = out[y0:y1, x0:x1]
-        if win.ndim == 3:
-            out[y0:y1, x0:x1] = np.stack([blur_along(win[..., c], disp, frac, weights) for c in range(win.shape[2])], -1)
-        else:
-            out[y0:y1, x0:x1] = blur_along(win, disp, frac, weights)
+        out[y0:y1, x0:x1] = blur_along(out[y0:y1, x0:x1], disp, frac, weights)
     return out
 
 
@@ -205,17 +259,33 @@ def agc(kelvin: np.ndarray, mode: str) -> np.ndarray:
     return np.rint(below[inverse] * scale).astype(np.uint8).reshape(kelvin.shape)
 
 
-def shot_noise(electrons: np.ndarray, rng: np.random.Generator, read_noise_e: float = 0.0) -> np.ndarray:
+def equalise_counts(counts: np.ndarray) -> np.ndarray:
+    """``agc(counts x kelvin_per_count, 'histogram')`` from the integer counts: a histogram of the
+    levels instead of np.unique's sort. Identical, because counts -> kelvin is strictly increasing
+    in float32 (counts < 2^16 differ by more than float32's 2^-24 relative spacing)."""
+    flat = counts.ravel()
+    per_level = np.bincount(flat)
+    below = np.cumsum(per_level) - per_level                 # pixels colder than each level
+    scale = 255.0 / max(int(below[-1]), 1)                   # the hottest level present is the last bin
+    return np.rint(below * scale).astype(np.uint8)[flat].reshape(counts.shape)
+
+
+def shot_noise(electrons: np.ndarray, rng: np.random.Generator, read_noise_e: float = 0.0,
+               out: np.ndarray | None = None, work: np.ndarray | None = None) -> np.ndarray:
     """Photo-electron counts with shot (Poisson) and read (Gaussian, rms read_noise_e) noise.
 
     At or above POISSON_EXACT_BELOW_E electrons everywhere, one normal draw with variance
     n + read^2 (the normal approximation of the Poisson term, skewness 1/sqrt(n) < 3 %, plus the
     independent Gaussian read noise); otherwise exact Poisson draws and a separate read-noise draw.
+    ``out`` and ``work`` (float32, electrons' shape) are optional buffers for the normal case (the
+    draws are the same as into a fresh array).
     """
     lam = np.asarray(electrons, dtype=np.float32)
     if float(lam.min()) >= POISSON_EXACT_BELOW_E:
-        out = rng.standard_normal(lam.shape, dtype=np.float32)
-        out *= np.sqrt(lam + np.float32(read_noise_e ** 2))
+        out = rng.standard_normal(dtype=np.float32, out=out) if out is not None else \
+            rng.standard_normal(lam.shape, dtype=np.float32)
+        sigma = np.add(lam, np.float32(read_noise_e ** 2), out=work)
+        out *= np.sqrt(sigma, out=sigma)
         out += lam
         return out
     out = rng.poisson(np.minimum(lam, 1e12)).astype(np.float32)
@@ -256,17 +326,18 @@ class ThermalSensor:
         self.column_offset_k = (p.fpn_column_offset_k * rng.standard_normal(p.width_px)).astype(np.float64)
         self._gain_row = (1.0 + self.column_gain[None, :]).astype(np.float32)
         self._offset_row = (self.nuc_reference_k + self.column_offset_k[None, :]).astype(np.float32)
+        self._scratch = Scratch()
 
     def detector_radiance(self, frame: int, radiance: np.ndarray) -> np.ndarray:
         """Optics + in-frame motion + bolometer lag, in W sr^-1 m^-2 (no noise)."""
         x = self.optics(radiance)
         if self.params.time_constant_s > 0:
-            x = motion_blur(x, self.motion, frame, 1.0, "exponential", self.params.time_constant_s,
-                            self.frame_period_s, self.kernel.shape[0] // 2)
-        if self._state is None:
-            self._state = x
-        else:
-            self._state = self.lag_alpha * x + (1.0 - self.lag_alpha) * self._state
+            motion_blur(x, self.motion, frame, 1.0, "exponential", self.params.time_constant_s,
+                        self.frame_period_s, self.kernel.shape[0] // 2, in_place=True)
+        if self._state is not None:                   # a x + (1 - a) state, into x (ours; the old state stays as returned)
+            x *= np.float32(self.lag_alpha)
+            x += np.multiply(self._state, np.float32(1.0 - self.lag_alpha), out=self._scratch("lag", x.shape))
+        self._state = x
         return self._state
 
     def record(self, frame: int, radiance: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -278,9 +349,15 @@ class ThermalSensor:
         kelvin *= self._gain_row
         kelvin += self._offset_row
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["thermal"], NOISE_STREAM, frame)
-        kelvin += np.float32(p.netd_k) * rng.standard_normal(kelvin.shape, dtype=np.float32)
-        counts = np.clip(np.rint(kelvin / p.kelvin_per_count), 0, 2 ** p.adc_bits - 1).astype(np.uint16)
-        shown = counts.astype(np.float32) * np.float32(p.kelvin_per_count)
+        noise = rng.standard_normal(dtype=np.float32, out=self._scratch("noise", kelvin.shape))
+        noise *= np.float32(p.netd_k)
+        kelvin += noise
+        level = np.divide(kelvin, p.kelvin_per_count, out=self._scratch("level", kelvin.shape))
+        np.rint(level, out=level)
+        counts = np.clip(level, 0, 2 ** p.adc_bits - 1, out=level).astype(np.uint16)
+        if p.agc == "histogram":                      # = agc(counts x kelvin_per_count, 'histogram')
+            return kelvin, counts, equalise_counts(counts)
+        shown = np.multiply(counts, np.float32(p.kelvin_per_count), out=level, dtype=np.float32)
         return kelvin, counts, agc(shown, p.agc)
 
     def metadata(self) -> dict:
@@ -321,6 +398,7 @@ class RgbSensor:
                                    * self.exposure_time_s * self.bin_area)
         self.needed_exposure_s = float(needed_s)
         self.motion = _motion(self.timeline, "rgb")
+        self._scratch = Scratch()
 
     def electrons_per_s_per_native_pixel(self, radiance_per_nm: float) -> float:
         """Photo-electron rate of a native pixel looking at a scene of this spectral radiance
@@ -332,22 +410,38 @@ class RgbSensor:
         photon_j = PLANCK_H * LIGHT_C / (RGB_WAVELENGTHS_UM[1] * 1e-6)
         return float(power / photon_j * p.quantum_efficiency)
 
+    def focal_plane(self, frame: int, rgb_linear: np.ndarray) -> np.ndarray:
+        """Optics (per channel) then motion blur: the exposed linear image on the sensor, (H, W, 3)
+        float32 in a work array (valid until the next call)."""
+        import cv2
+
+        h, w, n = rgb_linear.shape
+        planes = self._scratch("planes", (n, h, w))                    # channel planes: filter2D input
+        np.copyto(planes, np.moveaxis(rgb_linear, -1, 0), casting="unsafe")
+        blurred = self._scratch("optics", (n, h, w))
+        for c in range(n):
+            self.optics[c](planes[c], out=blurred[c])
+        x = cv2.merge(list(blurred), dst=self._scratch("focal", (h, w, n)))   # interleave again
+        return motion_blur(x, self.motion, frame, self.exposure_time_s / self.frame_period_s, "box", 0.0,
+                           self.frame_period_s, self.kernels[0].shape[0] // 2, in_place=True)
+
     def record(self, frame: int, rgb_linear: np.ndarray) -> np.ndarray:
+        """Exposed linear RGB (the renderer's units) -> recorded sRGB 8-bit (H, W, 3)."""
         p = self.params
-        x = np.empty(rgb_linear.shape, np.float32)
-        for c in range(3):
-            x[..., c] = self.optics[c](rgb_linear[..., c])
-        x = motion_blur(x, self.motion, frame, self.exposure_time_s / self.frame_period_s, "box", 0.0,
-                        self.frame_period_s, self.kernels[0].shape[0] // 2)
-        electrons = np.maximum(x, np.float32(0.0), dtype=np.float32)
+        electrons = self.focal_plane(frame, rgb_linear)
+        np.maximum(electrons, np.float32(0.0), out=electrons)
         electrons *= np.float32(self.electrons_per_unit)
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["rgb"], NOISE_STREAM, frame)
-        noisy = shot_noise(electrons, rng, self.read_noise_e)
+        h, w, n = electrons.shape
+        work = self._scratch("planes", (n, h, w)).reshape(h, w, n)     # the planes are consumed by now
+        noisy = shot_noise(electrons, rng, self.read_noise_e, out=self._scratch("noise", electrons.shape), work=work)
         levels = 2 ** p.adc_bits - 1
         noisy *= np.float32(levels / self.full_well_e)
         np.clip(noisy, 0.0, levels, out=noisy)
         noisy += np.float32(0.5)
-        return self.srgb_lut[noisy.astype(np.int32)]   # ADC level (rounded) -> sRGB 8-bit
+        level = self._scratch("level", noisy.shape, np.uint16)        # ADC level, rounded (adc_bits <= 16)
+        np.copyto(level, noisy, casting="unsafe")
+        return self.srgb_lut.take(level.ravel()).reshape(level.shape)   # -> sRGB 8-bit
 
     @property
     def srgb_lut(self) -> np.ndarray:

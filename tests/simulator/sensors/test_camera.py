@@ -218,3 +218,107 @@ def test_agc_modes_span_the_8_bit_range(mode):
     out = cam.agc(k, mode)
     assert out.dtype == np.uint8 and out.min() == 0 and out.max() == 255
     assert np.all(np.diff(out.ravel()[np.argsort(k.ravel())].astype(int)) >= 0)   # monotonic in temperature
+
+
+# --- the fast implementations against their reference computations --------------------------------
+def _mirror_convolve_reference(image, kernel):
+    from scipy.ndimage import convolve
+
+    return convolve(image.astype(np.float64), kernel, mode="mirror")   # numpy 'reflect' padding
+
+
+@pytest.mark.parametrize("kernel_args", [(9.64, 2.8, 0.55, 0.0), (9.64, 2.8, 0.465, 0.0),   # RGB: direct
+                                         (12.0, 1.0, 10.0, 0.0), (12.0, 1.0, 10.0, 24.0)])  # LWIR: FFT
+def test_kernel_filter_equals_the_mirrored_spatial_convolution(kernel_args):
+    kernel = cam.psf_kernel(*kernel_args)
+    rng = np.random.default_rng(1)
+    image = (10.0 + rng.random((70, 90))).astype(np.float32)
+    image[30:34, 40:46] += 50.0                                          # a hot target: an edge to blur
+    out = cam.KernelFilter(kernel)(image)
+    ref = _mirror_convolve_reference(image, kernel)
+    assert out.dtype == np.float32 and out.shape == image.shape
+    assert np.max(np.abs(out - ref) / ref) < 1e-6                        # float32 rounding (2^-23 = 1.2e-7)
+
+
+def test_kernel_filter_does_not_depend_on_the_opencv_thread_count():
+    import cv2
+
+    image = np.random.default_rng(2).random((130, 150)).astype(np.float32)
+    filters = [cam.KernelFilter(cam.psf_kernel(9.64, 2.8, 0.61, 0.0)), cam.KernelFilter(cam.psf_kernel(12.0, 1.0, 10.0, 0.0))]
+    before = cv2.getNumThreads()
+    try:
+        outs = []
+        for threads in (1, 2, 4):
+            cv2.setNumThreads(threads)
+            outs.append([f(image) for f in filters])
+    finally:
+        cv2.setNumThreads(before)
+    for other in outs[1:]:
+        assert all(np.array_equal(a, b) for a, b in zip(outs[0], other))
+
+
+def _blur_along_reference(window, displacement_px, frac, weights):
+    """The definition: weighted sum of scipy.ndimage.shift (bilinear, edges replicated), float64."""
+    from scipy.ndimage import shift
+
+    out = np.zeros(window.shape)
+    for f, w in zip(frac, weights):
+        dx, dy = -np.asarray(displacement_px) * f
+        out += w * shift(window.astype(np.float64), (dy, dx) + (0,) * (window.ndim - 2), order=1, mode="nearest")
+    return out
+
+
+@pytest.mark.parametrize("displacement", [(12.3, 0.0), (-4.37, 2.9), (0.6, -7.25), (3.0, 3.0), (-0.3, 0.1)])
+@pytest.mark.parametrize("kind", ["box", "exponential"])
+@pytest.mark.parametrize("channels", [0, 3])
+def test_blur_along_equals_the_sum_of_bilinear_shifts(displacement, kind, channels):
+    rng = np.random.default_rng(3)
+    shape = (41, 57) + ((channels,) if channels else ())
+    window = (1.0 + rng.random(shape)).astype(np.float32)
+    window[15:22, 20:30] += 20.0                                        # the target, near the trail's path
+    length = float(np.hypot(*displacement))
+    frac, weights = cam.trail_weights(int(np.ceil(2 * length)) + 2, kind, 0.010, 1 / 30)
+    out = cam.blur_along(window, np.array(displacement), frac, weights)
+    ref = _blur_along_reference(window, displacement, frac, weights)
+    assert out.dtype == np.float32 and out.shape == window.shape
+    assert np.max(np.abs(out - ref) / ref) < 1e-6                       # float32 rounding
+
+
+def test_trail_kernel_sums_the_weights_and_runs_along_the_motion():
+    frac, weights = cam.trail_weights(10, "box", 0.0, 1 / 30)
+    k = cam.trail_kernel(np.array([4.0, 0.0]), frac, weights)
+    assert k.shape[0] == 3 and k.sum() == pytest.approx(1.0, abs=1e-6)
+    centre = k.shape[1] // 2
+    assert np.all(k[1, :centre] == 0) and k[1, centre:centre + 5].sum() == pytest.approx(1.0, abs=1e-6)   # out[p] reads in[p + o], o >= 0
+
+
+@pytest.mark.parametrize("kelvin_per_count", [0.01, 0.04, 0.0123])
+def test_equalise_counts_is_histogram_agc_of_the_shown_temperatures(kelvin_per_count):
+    rng = np.random.default_rng(4)
+    counts = np.clip(rng.normal(29000, 300, (60, 80)), 0, 65535).astype(np.uint16)
+    counts[:5, :7] = 65535                                            # a hot clipped corner
+    counts[10, :] = rng.integers(0, 100, 80)                          # far-away cold levels (gaps)
+    shown = counts.astype(np.float32) * np.float32(kelvin_per_count)
+    assert np.array_equal(cam.equalise_counts(counts), cam.agc(shown, "histogram"))
+    flat = np.full((8, 9), 1234, np.uint16)
+    assert np.array_equal(cam.equalise_counts(flat), cam.agc(flat.astype(np.float32) * np.float32(0.01), "histogram"))
+
+
+@pytest.mark.parametrize("agc_mode", ["minmax", "histogram"])
+def test_recorded_frames_are_fresh_arrays_not_reused_work_arrays(agc_mode):
+    tl = _timeline(frames=4, agc=agc_mode)
+    model = cam.CameraModel(tl, render_exposure=30.0)
+    rng = np.random.default_rng(6)
+    inputs = [((0.2 + 0.1 * rng.random((48, 64, 3))).astype(np.float32),
+               _flat_thermal(tl) * (1 + 0.01 * rng.random((48, 64))).astype(np.float32),
+               np.full((48, 64), 300.0, np.float32)) for _ in range(3)]
+    first = model.record(0, *inputs[0])
+    kept = {k: getattr(first, k).copy() for k in ("rgb8", "thermal_counts", "thermal_agc8", "thermal_kelvin")}
+    later = [model.record(i, *inputs[i]) for i in (1, 2)]
+    for k, v in kept.items():
+        assert np.array_equal(getattr(first, k), v)                     # not overwritten by later frames
+        assert not any(np.shares_memory(getattr(first, k), getattr(r, k)) for r in later)
+    fresh = cam.CameraModel(tl, render_exposure=30.0)                   # same frames from a new model
+    again = [fresh.record(i, *inputs[i]) for i in range(3)]
+    for a, b in zip([first, *later], again):
+        assert a.rgb8.tobytes() == b.rgb8.tobytes() and a.thermal_counts.tobytes() == b.thermal_counts.tobytes()
