@@ -215,12 +215,19 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
                  "rf": np.concatenate([p.rf for p in parts])}
     from evids.experiments.pipeline import train_unimodal
 
-    models, records = [], []
     trained = train_unimodal(cfg, prep, list(cfg.models.seeds), progress)
-    for train_seed, stage1 in zip(cfg.models.seeds, trained):
-        m, rec = train_all(cfg, prep, progress, train_seed, val_noisy, trained=stage1)
-        models.append(m)
-        records.append(rec)
+    from evids.experiments.pipeline import forked_map
+
+    # stage 2 (fusion heads, temperatures) of every training seed as forked jobs (identical results
+    # for any worker count: each depends only on its own seed's models and the shared inputs)
+    _FORKED_CTX["train"] = (cfg, prep, val_noisy, trained)
+    try:
+        done = dict(forked_map(_fusion_job, [(k,) for k in range(len(trained))], cfg.models.train_workers,
+                               "fitting fusion heads" if progress else None))
+    finally:
+        _FORKED_CTX.clear()
+    models = [done[k][0] for k in range(len(trained))]
+    records = [done[k][1] for k in range(len(trained))]
     record = {"runs": records}
     save_models(models, run_dir / "models.pt")
     split = {s: [prep.clips[i].clip_id for i in idx] for s, idx in prep.split.items()}
@@ -237,6 +244,13 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
     write_json(run_dir / "train.json", train_info)
     mark_stage(run_dir, "train", time.perf_counter() - t0, {"data_seconds": round(data_s, 2)})
     return Context(run_dir, cfg, prep, models, progress)
+
+
+def _fusion_job(k: int) -> tuple:
+    """train_all's stage 2 for the k-th training seed (in a worker)."""
+    cfg, prep, val_noisy, trained = _FORKED_CTX["train"]
+    torch.set_num_threads(cfg.models.torch_threads)
+    return train_all(cfg, prep, False, cfg.models.seeds[k], val_noisy, trained=trained[k])
 
 
 def _aggregate(per_seed: list[dict]) -> dict:
