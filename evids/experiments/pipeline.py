@@ -3,6 +3,7 @@ sigmoid/evidential), stage-2 fusion heads on frozen backbones (Late Fusion, GMU)
 for the sigmoid control, and batched encoding of (degraded) inputs into per-modality outputs."""
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -264,7 +265,10 @@ def _state(models: Models) -> dict:
     return {"unimodal": {f"{m}/{h}": mod.state_dict() for (m, h), mod in models.unimodal.items()},
             "late": models.late.state_dict(), "gmu": models.gmu.state_dict(),
             "late_clean": models.late_clean.state_dict(), "gmu_clean": models.gmu_clean.state_dict(),
-            "temperatures": models.temperatures, "temperature_flags": models.temperature_flags}
+            # keys interned: models fitted in a worker arrive with fresh key strings, which pickle
+            # would otherwise store again instead of referencing (same values, other bytes)
+            "temperatures": {sys.intern(k): v for k, v in models.temperatures.items()},
+            "temperature_flags": {sys.intern(k): v for k, v in models.temperature_flags.items()}}
 
 
 def save_models(models: list[Models], path) -> None:

@@ -80,3 +80,27 @@ def test_training_rejects_empty_or_mismatched_sets():
         train_model(model, x, np.zeros(3), x, np.zeros(4), TrainConfig(), seed=0)
     with pytest.raises(ValueError, match="must not be empty"):
         train_model(model, x[:0], np.zeros(0), x, np.zeros(4), TrainConfig(), seed=0)
+
+
+def test_saved_models_bytes_do_not_depend_on_which_process_built_them(tmp_path):
+    """models.pt of fusion heads fitted in a worker (their dict keys arrive as fresh strings after
+    unpickling) is byte-identical to the same models built in-process."""
+    import pickle
+
+    from evids.experiments.pipeline import Models, save_models
+    from evids.fusion import GMU, LateFusion
+    from evids.models.backbones import MODALITIES
+
+    unimodal = {(m, h): build_model(m, h, 1, video_frames=2) for m in MODALITIES for h in ("sigmoid", "evidential")}
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(0)
+        heads = (LateFusion(3), GMU([32] * 3, 16, 1), LateFusion(3), GMU([32] * 3, 16, 1))
+    local = Models(unimodal, *heads, temperatures={"audio": 1.5, "late": 0.4}, temperature_flags={"late": None})
+    shipped = pickle.loads(pickle.dumps(local))          # what a forked job returns
+    assert all(a is not b for a, b in zip(local.temperatures, shipped.temperatures))   # fresh key strings
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    save_models([local], tmp_path / "a" / "models.pt")
+    save_models([Models(unimodal, *heads, temperatures=shipped.temperatures,
+                        temperature_flags=shipped.temperature_flags)], tmp_path / "b" / "models.pt")
+    assert (tmp_path / "a" / "models.pt").read_bytes() == (tmp_path / "b" / "models.pt").read_bytes()
