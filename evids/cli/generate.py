@@ -89,7 +89,7 @@ def export(
     dataset: Path = typer.Argument(..., help="A native dataset folder (made by `evids generate`), or a TRIDENT clip "
                                    "dataset (made by `evids generate --format trident`)."),
     fmt: str = typer.Option(..., "--format", help="native datasets: antiuav, antiuav_rgbt, antiuav2021, mot, coco, "
-                            "webdataset; TRIDENT clip datasets: trident (the public layout), webdataset "
+                            "webdataset, zarr (float32 thermal kelvin stacks, chunked per frame; needs the zarr extra); TRIDENT clip datasets: trident (the public layout), webdataset "
                             "(comma-separated for several)."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default DATASET/<format>); one "
                                        "format: written here; several: OUT/<format>."),

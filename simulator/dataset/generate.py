@@ -4,7 +4,7 @@ Layout (docs/DATASETS.md)::
 
     DIR/manifest.json             resolved config, seed, versions, per-sequence seed/split/hash
     DIR/sequences/seq000001/      native layout (docs/NATIVE_FORMAT.md), renamed into place whole
-    DIR/<format>/                 optional exports (antiuav, antiuav_rgbt, antiuav2021, mot, coco, webdataset)
+    DIR/<format>/                 optional exports (antiuav, antiuav_rgbt, antiuav2021, mot, coco, webdataset, zarr)
 
 The manifest is written first with ``"complete": false`` and no hashes (so a resumed run can check
 it is the same dataset), and rewritten at the end with the hashes; it holds no timestamps, so an
@@ -44,7 +44,7 @@ from simulator.files import (
 MANIFEST = "manifest.json"
 SEQUENCES_DIR = "sequences"
 DATASET_FORMAT = "evids-native-dataset"
-EXPORT_FORMATS = ("antiuav", "antiuav_rgbt", "antiuav2021", "mot", "coco", "webdataset")
+EXPORT_FORMATS = ("antiuav", "antiuav_rgbt", "antiuav2021", "mot", "coco", "webdataset", "zarr")
 TRIDENT_EXPORT_FORMATS = ("trident", "webdataset")     # formats a TRIDENT clip dataset exports to
 EXECUTORS = ("local", "ray")
 
@@ -622,7 +622,8 @@ def _export_locked(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, an
     sibling and renamed, so a failure leaves ``out_dir`` as it was.
 
     Native datasets export to antiuav, antiuav_rgbt, antiuav2021, mot (MM-UAV dataset layout plus the
-    MOTChallenge evaluation layout under ``gt/``), coco and webdataset; TRIDENT clip datasets (made by
+    MOTChallenge evaluation layout under ``gt/``), coco, webdataset and zarr (thermal kelvin stacks,
+    the optional zarr extra); TRIDENT clip datasets (made by
     ``evids generate --format trident``) to trident (the public layout) and webdataset.
 
     ``distractors`` (birds, aircraft): mot default ``none`` (exactly MM-UAV); True or ``class`` = rows
@@ -671,6 +672,10 @@ def _export_locked(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, an
 
             export_coco(entries, tmp, distractors=distractors not in (False, "none"), progress=progress,
                         naming=coco_naming)
+        elif fmt == "zarr":
+            from simulator.formats.kelvin_zarr import export_kelvin_zarr
+
+            export_kelvin_zarr(entries, tmp, progress=progress)
         else:
             from simulator.formats.webdataset import export_native_webdataset
 

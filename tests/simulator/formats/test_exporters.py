@@ -264,3 +264,27 @@ def test_webdataset_round_trip_and_byte_identical(dataset, tmp_path):
             assert s["json"]["thermal"] == labels[name]["frames"][i]["thermal"] and s["json"]["split"] == split
     again = export_dataset(out, "webdataset", tmp_path / "c", progress=False)
     assert [p.read_bytes() for p in sorted(a.rglob("*.tar"))] == [p.read_bytes() for p in sorted(again.rglob("*.tar"))]
+
+
+def test_zarr_kelvin_stacks_equal_the_native_reader_and_are_byte_identical(dataset, tmp_path):
+    from simulator.formats.kelvin_zarr import read_kelvin_stack
+    from simulator.formats.native import load_meta, load_thermal_kelvin
+
+    out, entries, labels = dataset
+    a = export_dataset(out, "zarr", tmp_path / "a", progress=False)
+    for e in entries:
+        seq = out / "sequences" / e["name"]
+        kelvin, attrs = read_kelvin_stack(a / e["split"] / f"{e['name']}.zarr")
+        n = len(labels[e["name"]]["frames"])
+        assert kelvin.shape[0] == n and kelvin.dtype == np.float32
+        for i in range(n):
+            np.testing.assert_array_equal(kelvin[i], load_thermal_kelvin(seq, i))
+        assert attrs["kelvin_per_count"] == load_meta(seq)["cameras"]["thermal"]["kelvin_per_count"]
+        assert attrs["sequence"] == e["name"] and attrs["split"] == e["split"]
+        part, _ = read_kelvin_stack(a / e["split"] / f"{e['name']}.zarr", slice(1, 3))
+        np.testing.assert_array_equal(part, kelvin[1:3])
+    b = export_dataset(out, "zarr", tmp_path / "b", progress=False)
+    files_a = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file() and p.name != ".evids-output.json")
+    files_b = sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file() and p.name != ".evids-output.json")
+    assert files_a == files_b and files_a
+    assert all((a / f).read_bytes() == (b / f).read_bytes() for f in files_a)
