@@ -42,9 +42,11 @@ from evids.experiments.pipeline import (
     Outputs,
     encode,
     encode_modality,
+    forked_map,
     load_models,
     save_models,
     train_all,
+    train_unimodal,
 )
 from evids.gating import GateParams, HysteresisGate, sweep_gates
 from evids.metrics import paired_bootstrap, paired_permutation_test
@@ -213,11 +215,7 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
              for i in va]
     val_noisy = {"mfcc": np.concatenate([p.mfcc for p in parts]), "video": np.concatenate([p.video for p in parts]),
                  "rf": np.concatenate([p.rf for p in parts])}
-    from evids.experiments.pipeline import train_unimodal
-
     trained = train_unimodal(cfg, prep, list(cfg.models.seeds), progress)
-    from evids.experiments.pipeline import forked_map
-
     # stage 2 (fusion heads, temperatures) of every training seed as forked jobs (identical results
     # for any worker count: each depends only on its own seed's models and the shared inputs)
     _FORKED_CTX["train"] = (cfg, prep, val_noisy, trained)
@@ -455,8 +453,6 @@ def _map_groups(ctx: Context, groups: list, extra: tuple, label: str, job=None):
     """(group, result) of ``job(group, extra)`` (default _evaluate_group) for every group, through
     pipeline.forked_map on ``models.train_workers`` processes (each on models.torch_threads
     threads, inheriting the context; results do not depend on the count)."""
-    from evids.experiments.pipeline import forked_map
-
     _FORKED_CTX["ctx"] = ctx
     try:
         for _, result in forked_map(job or _evaluate_group, [(g, extra) for g in groups], ctx.cfg.models.train_workers,

@@ -102,7 +102,7 @@ def degrade_sequence(sequence: Path, spec, out_dir: Path, seed: int, *, overwrit
     boxes = _boxes(rows)
 
     def read(stream: str, i: int) -> np.ndarray:
-        return (load_rgb(sequence, i) if stream == "rgb" else load_thermal_kelvin(sequence, i))[None]
+        return (load_rgb(sequence, i) if stream == "rgb" else load_thermal_kelvin(sequence, i, kpc))[None]
 
     def frame_meta(stream: str, i: int) -> dict:
         if stream == "rgb":

@@ -46,15 +46,18 @@ def write_kelvin_stack(sequence_dir: Path, out_path: Path, *, sequence: str, spl
     from zarr.codecs import ZstdCodec
 
     meta, labels = load_meta(sequence_dir), load_labels(sequence_dir)
+    kpc = meta["cameras"]["thermal"]["kelvin_per_count"]
     indices = [f["index"] for f in labels["frames"]]
-    first = load_thermal_kelvin(sequence_dir, indices[0])
+    frames = (load_thermal_kelvin(sequence_dir, index, kpc) for index in indices)
+    first = next(frames)
     array = zarr.create_array(store=str(out_path), shape=(len(indices), *first.shape), dtype="float32",
                               chunks=(1, *first.shape), compressors=ZstdCodec(level=ZSTD_LEVEL),
                               fill_value=0.0, zarr_format=3)
-    for k, index in enumerate(indices):
-        array[k] = first if k == 0 else load_thermal_kelvin(sequence_dir, index)
+    array[0] = first
+    for k, kelvin in enumerate(frames, start=1):
+        array[k] = kelvin
     array.attrs.update({"sequence": sequence, "split": split, "frame_rate_hz": meta["frame_rate_hz"],
-                        "kelvin_per_count": meta["cameras"]["thermal"]["kelvin_per_count"],
+                        "kelvin_per_count": kpc,
                         "source": "native thermal/ 16-bit counts x kelvin_per_count (float32)"})
     return out_path
 

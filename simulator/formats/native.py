@@ -73,11 +73,13 @@ def load_labels(sequence_dir: Path) -> dict:
     return json.loads((Path(sequence_dir) / "labels.json").read_text())
 
 
-def load_thermal_kelvin(sequence_dir: Path, index0: int) -> np.ndarray:
-    """float32 radiometric temperature of frame index0 (0-based) from the 16-bit counts."""
-    meta = load_meta(sequence_dir)
+def load_thermal_kelvin(sequence_dir: Path, index0: int, kelvin_per_count: float | None = None) -> np.ndarray:
+    """float32 radiometric temperature of frame index0 (0-based) from the 16-bit counts
+    (``kelvin_per_count``: the sequence's scale when the caller has read meta.json already)."""
+    if kelvin_per_count is None:
+        kelvin_per_count = load_meta(sequence_dir)["cameras"]["thermal"]["kelvin_per_count"]
     counts = read_image(Path(sequence_dir) / "thermal" / frame_name(index0, "png"))
-    return counts.astype(np.float32) * np.float32(meta["cameras"]["thermal"]["kelvin_per_count"])
+    return counts.astype(np.float32) * np.float32(kelvin_per_count)
 
 
 def load_rgb(sequence_dir: Path, index0: int) -> np.ndarray:
