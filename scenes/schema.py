@@ -226,6 +226,13 @@ class RgbCamera(CameraIntrinsics):
     exposure_time_s: float | None = Field(default=None, gt=0.0, le=1.0)
     max_gain: float = Field(default=16.0, ge=1.0, le=1024.0)
     adc_bits: Literal[8, 10, 12, 14, 16] = 12
+    tone: Literal["srgb", "camcorder"] = Field(
+        default="srgb", description="srgb: fixed exposure, sRGB curve; camcorder: whole-frame auto-exposure + "
+                                    "BT.709 curve with a highlight knee (simulator/sensors/agc.py)")
+    ae_key: float = Field(default=0.25, gt=0.0, le=1.0, description="camcorder: metered mean linear luminance target")
+    ae_damping: float = Field(default=0.9, ge=0.0, lt=1.0, description="camcorder: per-frame memory of the exposure (log)")
+    knee_point: float = Field(default=0.85, gt=0.0, le=1.0, description="camcorder: output level where the knee starts")
+    knee_slope: float = Field(default=0.25, gt=0.0, le=1.0, description="camcorder: slope factor above the knee")
 
 
 class ThermalCamera(CameraIntrinsics):
@@ -243,7 +250,15 @@ class ThermalCamera(CameraIntrinsics):
     fpn_column_offset_k: float = Field(default=0.02, ge=0.0, le=10.0, description="rms per-column offset")
     fpn_column_gain: float = Field(default=0.005, ge=0.0, le=0.5, description="rms per-column gain error")
     adc_bits: Literal[14, 16] = 16
-    agc: Literal["minmax", "percentile", "histogram"] = "minmax"
+    agc: Literal["minmax", "percentile", "histogram", "plateau"] = "minmax"
+    agc_bin_k: float = Field(default=0.05, gt=0.0, le=5.0, description="plateau: histogram bin width")
+    agc_plateau_fraction: float = Field(default=0.01, gt=0.0, le=1.0,
+                                        description="plateau: per-bin cap, fraction of the frame's pixels")
+    agc_linear_fraction: float = Field(default=0.2, ge=0.0, le=1.0, description="plateau: share of the linear map")
+    agc_tail_fraction: float = Field(default=0.005, ge=0.0, lt=0.5, description="plateau: pixels ignored at each end")
+    agc_min_span_k: float = Field(default=4.0, gt=0.0, le=200.0,
+                                  description="plateau: a scene narrower than this is not stretched to full range (max gain)")
+    agc_damping: float = Field(default=0.9, ge=0.0, lt=1.0, description="plateau: per-frame memory of the transfer")
 
     @model_validator(mode="after")
     def _counts_cover_scene(self) -> "ThermalCamera":

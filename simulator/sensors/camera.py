@@ -10,9 +10,11 @@ Per frame and camera, in this order (all linear stages commute; noise comes last
 3. thermal: first-order bolometer lag y_n = a x_n + (1 - a) y_(n-1), a = 1 - exp(-dt/tau)
    (the in-frame part is step 1); brightness temperature; per-column fixed-pattern gain/offset
    about the NUC reference (air temperature); temporal NETD noise; 14/16-bit radiometric counts;
-   8-bit AGC view;
+   8-bit AGC view (``agc: plateau`` = the FLIR cores' plateau equalisation over the whole frame,
+   damped over frames: simulator/sensors/agc.py);
 4. RGB: photo-electrons from the physical radiance (auto exposure capped at one frame period, then
-   gain up to max_gain), shot (Poisson) and read noise, ADC quantisation, sRGB 8-bit.
+   gain up to max_gain), shot (Poisson) and read noise, ADC quantisation, sRGB 8-bit
+   (``tone: camcorder`` = whole-frame metered auto-exposure + BT.709 curve with a highlight knee).
 Noise is seeded per (scenario seed, camera, frame) through ``rng_for``; fixed-pattern noise per
 (seed, camera). Labels are computed from the renderer's exact buffers, never from these frames.
 """
@@ -27,6 +29,7 @@ from scenes.schema import RgbCamera, ThermalCamera
 from simulator.physics import thermal as radiometry
 from simulator.physics.timeline import Timeline
 from simulator.seeding import rng_for
+from simulator.sensors.agc import CamcorderExposure, PlateauAgc
 from simulator.sensors.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8
 
 PLANCK_H = 6.62607015e-34
@@ -327,6 +330,8 @@ class ThermalSensor:
         self._gain_row = (1.0 + self.column_gain[None, :]).astype(np.float32)
         self._offset_row = (self.nuc_reference_k + self.column_offset_k[None, :]).astype(np.float32)
         self._scratch = Scratch()
+        self._plateau = PlateauAgc(p.kelvin_per_count, p.agc_bin_k, p.agc_plateau_fraction, p.agc_linear_fraction,
+                                   p.agc_tail_fraction, p.agc_min_span_k, p.agc_damping) if p.agc == "plateau" else None
 
     def detector_radiance(self, frame: int, radiance: np.ndarray) -> np.ndarray:
         """Optics + in-frame motion + bolometer lag, in W sr^-1 m^-2 (no noise)."""
@@ -357,6 +362,8 @@ class ThermalSensor:
         counts = np.clip(level, 0, 2 ** p.adc_bits - 1, out=level).astype(np.uint16)
         if p.agc == "histogram":                      # = agc(counts x kelvin_per_count, 'histogram')
             return kelvin, counts, equalise_counts(counts)
+        if self._plateau is not None:                 # stateful: the transfer is damped over frames
+            return kelvin, counts, self._plateau(counts)
         shown = np.multiply(counts, np.float32(p.kelvin_per_count), out=level, dtype=np.float32)
         return kelvin, counts, agc(shown, p.agc)
 
@@ -399,6 +406,9 @@ class RgbSensor:
         self.needed_exposure_s = float(needed_s)
         self.motion = _motion(self.timeline, "rgb")
         self._scratch = Scratch()
+        levels = 2 ** p.adc_bits - 1
+        self._camcorder = CamcorderExposure(self.gain / levels, levels, p.ae_key, p.ae_damping, p.knee_point,
+                                            p.knee_slope) if p.tone == "camcorder" else None
 
     def electrons_per_s_per_native_pixel(self, radiance_per_nm: float) -> float:
         """Photo-electron rate of a native pixel looking at a scene of this spectral radiance
@@ -441,6 +451,8 @@ class RgbSensor:
         noisy += np.float32(0.5)
         level = self._scratch("level", noisy.shape, np.uint16)        # ADC level, rounded (adc_bits <= 16)
         np.copyto(level, noisy, casting="unsafe")
+        if self._camcorder is not None:               # whole-frame auto-exposure + BT.709 knee curve
+            return self._camcorder(level)
         return self.srgb_lut.take(level.ravel()).reshape(level.shape)   # -> sRGB 8-bit
 
     @property
