@@ -278,6 +278,24 @@ class CameraOffset(_Model):
     roll_deg: float = 0.0
 
 
+class Recording(_Model):
+    """H.264 recording chain after the camera model (simulator/sensors/recording.py): the 8-bit views
+    (rgb, thermal_agc) pass through a libx264 encode + decode; counts and kelvin stay untouched.
+    Rate control: ``crf`` (constant rate factor; 28 if neither is given) or ``bit_rate_bps``."""
+
+    codec: Literal["h264"] = "h264"
+    crf: float | None = Field(default=None, ge=0.0, le=51.0)
+    bit_rate_bps: int | None = Field(default=None, ge=1, le=10 ** 9)
+    gop_frames: int = Field(default=128, ge=1, le=100000, description="frames from one key frame to the next")
+    preset: Literal["ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow"] = "veryfast"
+
+    @model_validator(mode="after")
+    def _one_rate_control(self) -> "Recording":
+        if self.crf is not None and self.bit_rate_bps is not None:
+            raise ValueError("give crf or bit_rate_bps, not both")
+        return self
+
+
 class CameraRig(_Model):
     position_m: Vec3 = (0.0, 0.0, 1.5)
     look_at_m: Vec3 | None = None
@@ -286,6 +304,7 @@ class CameraRig(_Model):
     thermal: ThermalCamera = Field(default_factory=ThermalCamera)
     thermal_offset: CameraOffset = Field(default_factory=CameraOffset)
     sensor: Literal["camera", "ideal"] = Field(default="camera", description="ideal = no camera model")
+    recording: Recording | None = Field(default=None, description="H.264 recording chain (None = lossless frames)")
 
     @model_validator(mode="after")
     def _pointing(self) -> "CameraRig":

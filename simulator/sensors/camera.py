@@ -489,22 +489,35 @@ class CameraModel:
         if not self.ideal:
             self.rgb = RgbSensor(rig.rgb, timeline, period, render_exposure)
             self.thermal = ThermalSensor(rig.thermal, timeline, period, scenario.atmosphere.air_temperature_k)
+        self.recording = None
+        if rig.recording is not None:                 # opened now: a refused rate fails before any frame
+            from simulator.sensors.recording import RecordingChain
+
+            self.recording = RecordingChain(rig.recording, (rig.rgb.width_px, rig.rgb.height_px),
+                                            (rig.thermal.width_px, rig.thermal.height_px), scenario.frame_rate_hz)
 
     def record(self, frame: int, rgb_linear: np.ndarray, thermal_radiance: np.ndarray,
                thermal_kelvin: np.ndarray) -> RecordedFrame:
-        """The recorded frames of one rendered frame (radiance in, file-ready arrays out)."""
+        """The recorded frames of one rendered frame (radiance in, file-ready arrays out); frames in order."""
         kpc = self.rig.thermal.kelvin_per_count
         if self.ideal:
             counts = kelvin_to_counts(thermal_kelvin, kpc)
-            return RecordedFrame(rgb_to_srgb8(rgb_linear), counts, agc_8bit(thermal_kelvin)[0], thermal_kelvin)
-        kelvin, counts, shown = self.thermal.record(frame, thermal_radiance)
-        return RecordedFrame(self.rgb.record(frame, rgb_linear), counts, shown, kelvin)
+            out = RecordedFrame(rgb_to_srgb8(rgb_linear), counts, agc_8bit(thermal_kelvin)[0], thermal_kelvin)
+        else:
+            kelvin, counts, shown = self.thermal.record(frame, thermal_radiance)
+            out = RecordedFrame(self.rgb.record(frame, rgb_linear), counts, shown, kelvin)
+        if self.recording is not None:                # the recorder: H.264 on the 8-bit views
+            out.rgb8 = self.recording.rgb(out.rgb8)
+            out.thermal_agc8 = self.recording.thermal(out.thermal_agc8)
+        return out
 
     def record_buffers(self, frame: int, buffers) -> RecordedFrame:
         """``record`` for any object with rgb_linear, thermal_radiance and thermal_kelvin (FrameBuffers)."""
         return self.record(frame, buffers.rgb_linear, buffers.thermal_radiance, buffers.thermal_kelvin)
 
     def metadata(self) -> dict:
-        if self.ideal:
-            return {"sensor": "ideal"}
-        return {"sensor": "camera", "rgb": self.rgb.metadata(), "thermal": self.thermal.metadata()}
+        meta = {"sensor": "ideal"} if self.ideal else \
+            {"sensor": "camera", "rgb": self.rgb.metadata(), "thermal": self.thermal.metadata()}
+        if self.recording is not None:
+            meta["recording"] = self.recording.metadata()
+        return meta
