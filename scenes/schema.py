@@ -220,6 +220,8 @@ class RgbCamera(CameraIntrinsics):
     native_pixel_pitch_um: float = Field(default=1.55, gt=0.5, le=30.0)
     f_number: float = Field(default=2.8, ge=0.7, le=32.0)
     defocus_blur_um: float = Field(default=0.0, ge=0.0, le=500.0, description="blur-circle diameter")
+    blur_sigma_px: float = Field(default=0.0, ge=0.0, le=10.0,
+                                 description="extra Gaussian blur, rms in output pixels (aberrations, OLPF, rescaling)")
     full_well_e: float = Field(default=4600.0, gt=100.0, description="per native pixel")
     read_noise_e: float = Field(default=2.5, ge=0.0, description="per native pixel, rms")
     quantum_efficiency: float = Field(default=0.5, gt=0.0, le=1.0)
@@ -246,6 +248,8 @@ class ThermalCamera(CameraIntrinsics):
     f_number: float = Field(default=1.0, ge=0.5, le=8.0)
     wavelength_um: float = Field(default=10.0, ge=7.0, le=15.0, description="PSF wavelength")
     defocus_blur_um: float = Field(default=0.0, ge=0.0, le=1000.0, description="blur-circle diameter")
+    blur_sigma_px: float = Field(default=0.0, ge=0.0, le=10.0,
+                                 description="extra Gaussian blur, rms in pixels (aberrations, crosstalk)")
     time_constant_s: float = Field(default=0.010, ge=0.0, le=0.1)
     fpn_column_offset_k: float = Field(default=0.02, ge=0.0, le=10.0, description="rms per-column offset")
     fpn_column_gain: float = Field(default=0.005, ge=0.0, le=0.5, description="rms per-column gain error")

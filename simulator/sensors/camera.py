@@ -63,11 +63,15 @@ def optics_transfer(fx_per_um: np.ndarray, fy_per_um: np.ndarray, f_number: floa
 
 
 @lru_cache(maxsize=16)
-def psf_kernel(pixel_pitch_um: float, f_number: float, wavelength_um: float, defocus_blur_um: float) -> np.ndarray:
+def psf_kernel(pixel_pitch_um: float, f_number: float, wavelength_um: float, defocus_blur_um: float,
+               blur_sigma_um: float = 0.0) -> np.ndarray:
     """Discrete PSF: K[i, j] = energy of a point imaged at the centre of pixel (0, 0) that lands in
-    pixel (i, j) (optics PSF integrated over the pixel aperture). Odd square, sums to 1."""
+    pixel (i, j) (optics PSF integrated over the pixel aperture). Odd square, sums to 1.
+    ``blur_sigma_um``: an extra Gaussian (rms per axis) for what is not diffraction or defocus: lens
+    aberrations, an optical low-pass filter, detector crosstalk, the video path's resampling."""
     radius_px = int(max(2, np.ceil(20 * wavelength_um * f_number / pixel_pitch_um),
-                        np.ceil(defocus_blur_um / pixel_pitch_um) + 2))
+                        np.ceil(defocus_blur_um / pixel_pitch_um) + 2,
+                        np.ceil(4 * blur_sigma_um / pixel_pitch_um) + 1))
     size_px = 2 * radius_px + 1
     cutoff = 1.0 / (wavelength_um * f_number)                        # cycles/um
     sub = int(max(8, np.ceil(4 * pixel_pitch_um * cutoff)))          # fine samples per pixel (> Nyquist)
@@ -76,6 +80,8 @@ def psf_kernel(pixel_pitch_um: float, f_number: float, wavelength_um: float, def
     f = np.fft.fftfreq(n, d=pixel_pitch_um / sub)
     fx, fy = np.meshgrid(f, f)
     h = optics_transfer(fx, fy, f_number, wavelength_um, defocus_blur_um)
+    if blur_sigma_um > 0:                                             # Gaussian MTF exp(-2 pi^2 s^2 f^2)
+        h = h * np.exp(-2.0 * np.pi ** 2 * blur_sigma_um ** 2 * (fx ** 2 + fy ** 2))
     h = h * np.sinc(fx * pixel_pitch_um) * np.sinc(fy * pixel_pitch_um)   # pixel aperture (box)
     fine = np.real(np.fft.ifft2(h))                                   # (PSF * box)(x) on the fine grid, periodic
     fine = np.fft.fftshift(fine) * sub * sub                          # density per pixel area
@@ -320,7 +326,8 @@ class ThermalSensor:
 
     def __post_init__(self) -> None:
         p = self.params
-        self.kernel = psf_kernel(p.pixel_pitch_um, p.f_number, p.wavelength_um, p.defocus_blur_um)
+        self.kernel = psf_kernel(p.pixel_pitch_um, p.f_number, p.wavelength_um, p.defocus_blur_um,
+                                 p.blur_sigma_px * p.pixel_pitch_um)
         self.optics = KernelFilter(self.kernel)
         self.lag_alpha = 1.0 - float(np.exp(-self.frame_period_s / p.time_constant_s)) if p.time_constant_s > 0 else 1.0
         self.motion = _motion(self.timeline, "thermal")
@@ -388,7 +395,8 @@ class RgbSensor:
     def __post_init__(self) -> None:
         p = self.params
         self.pixel_pitch_um = p.sensor_width_mm * 1000.0 / p.width_px
-        self.kernels = [psf_kernel(self.pixel_pitch_um, p.f_number, wl, p.defocus_blur_um) for wl in RGB_WAVELENGTHS_UM]
+        self.kernels = [psf_kernel(self.pixel_pitch_um, p.f_number, wl, p.defocus_blur_um,
+                                   p.blur_sigma_px * self.pixel_pitch_um) for wl in RGB_WAVELENGTHS_UM]
         self.optics = [KernelFilter(k) for k in self.kernels]
         self.bin_area = (self.pixel_pitch_um / p.native_pixel_pitch_um) ** 2
         self.full_well_e = p.full_well_e * self.bin_area
