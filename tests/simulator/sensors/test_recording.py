@@ -105,3 +105,26 @@ def test_camera_model_records_through_the_chain():
     assert meta["recording"]["bit_rate_bps"] == 200000 and meta["recording"]["encoder"] == "libx264"
     assert model.recording.rgb.bytes_written > 0 and model.recording.thermal.index == 3
     assert rec[2].thermal_counts.dtype == np.uint16                     # radiometric counts untouched
+
+
+def test_cli_render_with_a_refused_bit_rate_exits_2_and_writes_nothing(tmp_path):
+    import subprocess
+    import sys
+
+    import yaml
+
+    from scenes.loader import LIBRARY_DIR
+
+    data = yaml.safe_load((LIBRARY_DIR / "clear_day_quad.yaml").read_text())
+    data["duration_s"] = 0.08
+    data["camera_rig"]["rgb"].update(width_px=64, height_px=48)
+    data["camera_rig"]["thermal"].update(width_px=64, height_px=48)
+    data["camera_rig"]["recording"] = {"bit_rate_bps": 10}
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    result = subprocess.run([sys.executable, "-c", "from evids.cli import main; main()", "render", str(bad),
+                             "--out", str(out)], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2
+    assert "camera_rig.recording.bit_rate_bps" in result.stderr and "Traceback" not in result.stderr
+    assert not out.exists()
