@@ -10,12 +10,8 @@ contact sheets of target crops.
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import os
-import re
-import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -24,45 +20,19 @@ RING_PX = 4
 CROP_PX = 32
 
 
-def _blob(git_dir: str, path: str) -> bytes:
-    return subprocess.run(["git", "--git-dir", git_dir, "cat-file", "blob", f"HEAD:{path}"], check=True,
-                          capture_output=True).stdout
-
-
-def calibration_clips(git_dir: str, band: str) -> dict[str, list[str]]:
-    names = subprocess.run(["git", "--git-dir", git_dir, "ls-tree", "-r", "--name-only", "HEAD"], check=True,
-                           capture_output=True, text=True).stdout.split()
-    folder = "Video_IR" if band == "IR" else "Video_V"
-    out: dict[str, list[str]] = {}
-    for n in names:
-        m = re.fullmatch(rf"Data/{folder}/{band}_([A-Z]+)_(\d+)\.mp4", n)
-        if m and int(m.group(2)) % 2 == 1:                       # the calibration half only
-            out.setdefault(m.group(1), []).append(n)
-    return out
-
-
-def frames_of(data: bytes) -> np.ndarray:
-    import av
-
-    with av.open(io.BytesIO(data)) as c:
-        return np.stack([f.to_ndarray(format="gray") for f in c.decode(video=0)])
-
-
-def labels_of(git_dir: str, mp4: str) -> list:
-    from mcos_decoder import load_groundtruth
-
-    with tempfile.NamedTemporaryFile(suffix=".mat") as f:
-        f.write(_blob(git_dir, mp4.replace(".mp4", "_LABELS.mat")))
-        f.flush()
-        return load_groundtruth(f.name)
+def _grey(frame: np.ndarray) -> np.ndarray:
+    """IR frames are luma already; visible RGB -> Rec. 601 luma (what an 8-bit grey decode gives)."""
+    if frame.ndim == 2:
+        return frame
+    return np.rint(frame.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)).astype(np.uint8)
 
 
 def target_stats(frame: np.ndarray, box) -> tuple[float, float | None, np.ndarray]:
     """(contrast, second-moment radius for small boxes, crop) of one labelled target."""
     h, w = frame.shape
     x, y, bw, bh = box
-    x0, y0 = int(round(x - 1)), int(round(y - 1))               # MATLAB boxes are 1-based
-    x1, y1 = x0 + max(1, int(round(bw))), y0 + max(1, int(round(bh)))
+    x0, y0 = round(x - 1), round(y - 1)                         # MATLAB boxes are 1-based
+    x1, y1 = x0 + max(1, round(bw)), y0 + max(1, round(bh))
     x0, y0, x1, y1 = max(0, x0), max(0, y0), min(w, x1), min(h, y1)
     f = frame.astype(np.float64)
     inner = f[y0:y1, x0:x1]
@@ -87,7 +57,7 @@ def target_stats(frame: np.ndarray, box) -> tuple[float, float | None, np.ndarra
 
 def sky_noise(frames: np.ndarray, boxes) -> float:
     """Median per-pixel temporal std (10 frames) in the top fifth, the target's columns excluded."""
-    n, h, w = frames.shape
+    _, h, w = frames.shape
     stack = frames[:10, : h // 5].astype(np.float64)
     keep = np.ones(w, bool)
     for b in boxes[:10]:
@@ -96,25 +66,28 @@ def sky_noise(frames: np.ndarray, boxes) -> float:
     return float(np.median(stack.std(axis=0)[:, keep])) if keep.any() else float("nan")
 
 
-def measure(git_dir: str, band: str, per_class: int, step: int = 10) -> tuple[dict, dict]:
+def measure(bench, sensor: str, per_class: int, step: int = 10) -> tuple[dict, dict]:
+    """Statistics of the first ``per_class`` CALIBRATION clips of each class (reader: simulator.formats.svanstrom)."""
+    from simulator.formats.validation import FormatError
+
     summary, crops = {}, {}
-    for cls, clips in sorted(calibration_clips(git_dir, band).items()):
+    clips = bench.clips(sensor, half="calibration")
+    for cls in sorted({c.cls for c in clips}):
         con, rad, bg, noise, cr = [], [], [], [], []
         used = 0
-        for mp4 in clips:
+        for clip in [c for c in clips if c.cls == cls]:
             if used == per_class:
                 break
+            assert clip.number % 2 == 1                             # the calibration half only
             try:
-                frames = frames_of(_blob(git_dir, mp4))
-            except subprocess.CalledProcessError:           # a blob absent from this mirror
+                frames = np.stack([_grey(f) for _, f in bench.frames(clip)])
+                boxes = bench.aligned_labels(clip, len(frames))
+            except FormatError:                                     # a clip the reader refuses: skipped
                 continue
             used += 1
-            if frames.ndim == 4:
-                frames = frames[..., 0]
-            boxes = labels_of(git_dir, mp4)
             bg.append(float(np.median(frames[::step])))
             noise.append(sky_noise(frames, boxes))
-            for i in range(0, min(len(frames), len(boxes)), step):
+            for i in range(0, len(frames), step):
                 if boxes[i] is None:
                     continue
                 c, r, crop = target_stats(frames[i], boxes[i])
@@ -151,9 +124,12 @@ def main() -> None:
     ap.add_argument("--per-class", type=int, default=6)
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
+    from simulator.formats.svanstrom import SvanstromBenchmark
+
+    bench = SvanstromBenchmark(args.real)
     result = {}
-    for band in ("IR", "V"):
-        result[band], crops = measure(args.real, band, args.per_class)
+    for band, sensor in (("IR", "ir"), ("V", "visible")):
+        result[band], crops = measure(bench, sensor, args.per_class)
         contact_sheet(crops, args.out / f"real_{band}_crops.png")
     (args.out / "real_stats.json").write_text(json.dumps(result, indent=1))
     print(json.dumps(result, indent=1))

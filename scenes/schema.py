@@ -292,6 +292,8 @@ class Recording(_Model):
     bit_rate_bps: int | None = Field(default=None, ge=1, le=10 ** 9)
     gop_frames: int = Field(default=128, ge=1, le=100000, description="frames from one key frame to the next")
     preset: Literal["ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow"] = "veryfast"
+    video_range: Literal["limited", "full"] = Field(
+        default="limited", description="grey view on video levels (luma 16-235, as the benchmark's IR clips) or 0-255")
 
     @model_validator(mode="after")
     def _one_rate_control(self) -> "Recording":

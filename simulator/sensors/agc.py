@@ -69,7 +69,7 @@ class PlateauAgc:
     _transfer: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        self.bin_counts = max(1, int(round(self.bin_k / self.kelvin_per_count)))
+        self.bin_counts = max(1, round(self.bin_k / self.kelvin_per_count))
         self.n_bins = (COUNTS_LEVELS - 1) // self.bin_counts + 1
         self.min_span_bins = self.min_span_k / (self.bin_counts * self.kelvin_per_count)
 

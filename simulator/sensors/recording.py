@@ -5,8 +5,10 @@ libx264 through PyAV (FFmpeg's own bindings), one encoder and one decoder per st
 single-threaded (``threads=1``: same frames in => same bytes out) and with zero latency (no
 B-frames, no look-ahead: every frame in gives its decoded frame back at once, so the stage runs
 inside the camera model's frame loop). Grey frames go in as the luma plane with neutral chroma (no
-range conversion); RGB frames through FFmpeg's swscale to 4:2:0 and back (the chroma subsampling
-is part of what a recorder does). Only the 8-bit views pass: radiometric counts and kelvin stay as
+range conversion of ours beyond ``video_range``); RGB frames through FFmpeg's swscale to 4:2:0 and
+back (the chroma subsampling is part of what a recorder does). ``video_range: limited`` (default)
+puts the 8-bit grey view on video levels, luma = 16 + 219 v / 255, and hands back the decoded luma
+plane as it is: the benchmark's IR clips are such limited-range video (their luma spans 16-235). Only the 8-bit views pass: radiometric counts and kelvin stay as
 the camera made them. Rate control: constant rate factor ``crf`` or average ``bit_rate_bps``; a
 key frame every ``gop_frames``.
 """
@@ -65,6 +67,9 @@ class H264Stream:
         self.decoder.thread_type = "NONE"
         self.index = 0
         self.bytes_written = 0
+        levels = np.arange(256, dtype=np.float64)
+        self.luma_lut = (np.rint(16.0 + levels * 219.0 / 255.0) if params.video_range == "limited"
+                         else levels).astype(np.uint8)
 
     def _pad(self, image: np.ndarray) -> np.ndarray:
         if (self.coded_h, self.coded_w) == image.shape[:2]:
@@ -81,7 +86,8 @@ class H264Stream:
             frame = av.VideoFrame.from_ndarray(image, format="rgb24").reformat(format="yuv420p")
         else:
             chroma = np.full((self.coded_h // 2, self.coded_w), 128, np.uint8)
-            frame = av.VideoFrame.from_ndarray(np.concatenate([image, chroma]), format="yuv420p")
+            luma = self.luma_lut.take(image)
+            frame = av.VideoFrame.from_ndarray(np.concatenate([luma, chroma]), format="yuv420p")
         frame.pts = self.index
         decoded = []
         for packet in self.encoder.encode(frame):

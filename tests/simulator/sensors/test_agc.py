@@ -2,7 +2,12 @@
 import numpy as np
 import pytest
 
-from simulator.sensors.agc import CamcorderExposure, PlateauAgc, bt709_knee, plateau_transfer
+from simulator.sensors.agc import (
+    CamcorderExposure,
+    PlateauAgc,
+    bt709_knee,
+    plateau_transfer,
+)
 
 
 def test_plateau_transfer_by_hand():
