@@ -263,6 +263,9 @@ class ThermalCamera(CameraIntrinsics):
     agc_min_span_k: float = Field(default=4.0, gt=0.0, le=200.0,
                                   description="plateau: a scene narrower than this is not stretched to full range (max gain)")
     agc_damping: float = Field(default=0.9, ge=0.0, lt=1.0, description="plateau: per-frame memory of the transfer")
+    agc_base_sigma_px: float = Field(default=0.0, ge=0.0, le=200.0,
+                                     description="plateau: local contrast, Gaussian base (0 = off)")
+    agc_base_gain: float = Field(default=1.0, ge=0.0, le=1.0, description="plateau: gain of the base about its mean")
 
     @model_validator(mode="after")
     def _counts_cover_scene(self) -> "ThermalCamera":

@@ -8,7 +8,11 @@
   grey levels in proportion to its temperature span rather than to its pixel count; a share
   ``linear_fraction`` of a linear map over the tail-rejected range is mixed in; a scene spanning
   less than ``min_span_k`` is compressed about mid-grey (the maximum gain); the transfer function
-  is damped over time, T_n = d T_(n-1) + (1 - d) T_raw.
+  is damped over time, T_n = d T_(n-1) + (1 - d) T_raw. Optionally first a base/detail split, the
+  cores' local-contrast step (FLIR's digital detail enhancement acts on the equalised modes): the
+  counts' Gaussian low-pass (``base_sigma_px``) is scaled by ``base_gain`` about its frame mean and
+  the detail added back, so a slow sky gradient flattens to mid-grey while a hot ground leaves the
+  dark halo above the horizon that the real clips show.
 - Visible: **auto-exposure** metered over the whole frame (mean linear luminance driven to a key,
   damped in log exposure over frames) and a **camcorder tone curve**: the ITU-R BT.709 opto-
   electronic transfer function with a highlight knee (above ``knee_point`` of the output the slope
@@ -66,6 +70,8 @@ class PlateauAgc:
     tail_fraction: float
     min_span_k: float
     damping: float
+    base_sigma_px: float = 0.0
+    base_gain: float = 1.0
     _transfer: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -80,8 +86,25 @@ class PlateauAgc:
         return binned, plateau_transfer(hist, self.plateau_fraction, self.linear_fraction, self.tail_fraction,
                                         self.min_span_bins)
 
+    def local_contrast(self, counts: np.ndarray) -> np.ndarray:
+        """Counts with the Gaussian base scaled by base_gain about its mean (detail kept); uint16."""
+        import cv2
+
+        x = counts.astype(np.float32)
+        base = cv2.GaussianBlur(x, (0, 0), self.base_sigma_px, borderType=cv2.BORDER_REFLECT_101)
+        mean = np.float32(base.mean(dtype=np.float64))
+        x -= base                                                        # detail
+        base -= mean
+        base *= np.float32(self.base_gain)
+        x += base
+        x += mean
+        np.rint(x, out=x)
+        return np.clip(x, 0, COUNTS_LEVELS - 1, out=x).astype(np.uint16)
+
     def __call__(self, counts: np.ndarray) -> np.ndarray:
         """The 8-bit view of one frame of counts (the next frame's transfer starts from this one's)."""
+        if self.base_sigma_px > 0:
+            counts = self.local_contrast(counts)
         binned, raw = self.transfer_of(counts)
         if self._transfer is None or self.damping <= 0:
             self._transfer = raw

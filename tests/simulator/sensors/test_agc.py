@@ -92,3 +92,15 @@ def test_auto_exposure_drives_any_uniform_scene_to_the_key():
     f1 = slow.factor(np.full((8, 8, 3), 1000, np.uint16))
     f2 = slow.factor(np.full((8, 8, 3), 4000, np.uint16))        # 4x brighter: half the log step
     assert f1 == pytest.approx(0.25 * levels / 1000) and f2 == pytest.approx(f1 * 0.5)
+
+
+def test_local_contrast_flattens_a_slow_gradient_and_keeps_the_detail():
+    y, x = np.mgrid[0:120, 0:160]
+    counts = (27000 + 4 * y).astype(np.uint16)                     # a 4.8 K sky gradient (0.01 K counts)
+    counts[60:62, 80:82] += 200                                    # a +2 K target
+    agc = PlateauAgc(0.01, 0.05, 0.005, 0.5, 0.005, 4.0, 0.0, base_sigma_px=15.0, base_gain=0.0)
+    flat = agc.local_contrast(counts).astype(float)
+    assert np.ptp(flat[40:80, 40]) < 0.25 * np.ptp(counts[40:80, 40].astype(float))   # the gradient is gone inside
+    assert flat[60:62, 80:82].mean() - np.median(flat[50:72, 70:92]) > 150                  # the target stays
+    kept = PlateauAgc(0.01, 0.05, 0.005, 0.5, 0.005, 4.0, 0.0, base_sigma_px=15.0, base_gain=1.0)
+    assert np.abs(kept.local_contrast(counts).astype(int) - counts).max() <= 1              # gain 1 = identity
