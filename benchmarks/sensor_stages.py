@@ -57,6 +57,7 @@ def main() -> None:
     args = parser.parse_args()
     counts, levels = _frames(args.frames)
     plateau = PlateauAgc(0.01, 0.05, 0.01, 0.2, 0.005, 4.0, 0.9)
+    local = PlateauAgc(0.01, 0.05, 0.005, 0.5, 0.005, 16.0, 0.9, base_sigma_px=30.0, base_gain=0.0)   # 15 px at 320
     camcorder = CamcorderExposure(1 / 4095, 4095, 0.25, 0.9, 0.85, 0.25)
     srgb_lut = np.arange(4096, dtype=np.uint16).astype(np.uint8)
     rgb8 = [camcorder(x) for x in levels]
@@ -67,6 +68,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         rows = [
             ("plateau AGC (thermal)", _per_frame_ms(plateau, counts), "histogram AGC", _per_frame_ms(equalise_counts, counts)),
+            ("plateau + local contrast", _per_frame_ms(local, counts), "histogram AGC", _per_frame_ms(equalise_counts, counts)),
             ("camcorder AE + tone (RGB)", _per_frame_ms(camcorder, levels), "sRGB LUT",
              _per_frame_ms(lambda x: srgb_lut.take(x.ravel()).reshape(x.shape), levels)),
             ("H.264 encode+decode RGB", _per_frame_ms(rgb_stream, rgb8), "PNG write RGB",
