@@ -95,7 +95,7 @@ def test_auto_exposure_drives_any_uniform_scene_to_the_key():
 
 
 def test_local_contrast_flattens_a_slow_gradient_and_keeps_the_detail():
-    y, x = np.mgrid[0:120, 0:160]
+    y = np.mgrid[0:120, 0:160][0]
     counts = (27000 + 4 * y).astype(np.uint16)                     # a 4.8 K sky gradient (0.01 K counts)
     counts[60:62, 80:82] += 200                                    # a +2 K target
     agc = PlateauAgc(0.01, 0.05, 0.005, 0.5, 0.005, 4.0, 0.0, base_sigma_px=15.0, base_gain=0.0)
