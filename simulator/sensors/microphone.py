@@ -4,8 +4,8 @@ Stages (each switchable; parameters that the hardware leaves open are drawn per 
 ``RecorderConfig`` ranges, ``rng_for(seed, "acoustics", *indices, RECORDER_STREAM_INDEX)``):
 
 1. microphone response: 2nd-order high-pass (small electret capsules and their wind-noise filters
-   roll off below ~20-80 Hz), a broad presence lift (+0-5 dB around 2-6 kHz, typical of small
-   cardioid/shotgun electrets) and a 2nd-order low-pass (10-18 kHz);
+   roll off below ~30-100 Hz), a broad presence lift (+0-5 dB around 2-6 kHz, typical of small
+   cardioid/shotgun electrets) and a 2nd-order low-pass (12-20 kHz, at most 0.45 fs);
 2. self-noise of capsule and preamplifier (a white floor, dB re full scale after the gain);
 3. automatic gain control: the level (RMS in 50 ms blocks) is followed with a fast attack and a slow
    release and the gain steers it to a target level, between a minimum and maximum gain, as consumer
@@ -33,8 +33,8 @@ class RecorderConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     enabled: bool = True
-    highpass_hz: Span = (20.0, 80.0)
-    lowpass_hz: Span = (10_000.0, 18_000.0)
+    highpass_hz: Span = (30.0, 100.0)
+    lowpass_hz: Span = (12_000.0, 20_000.0)
     presence_db: Span = (0.0, 5.0)
     presence_hz: Span = (2000.0, 6000.0)
     self_noise_dbfs: Span = (-80.0, -66.0)
@@ -42,7 +42,7 @@ class RecorderConfig(BaseModel):
     agc_target_dbfs: Span = (-32.0, -22.0)
     agc_release_s: Span = (0.5, 3.0)
     agc_attack_s: float = Field(default=0.05, gt=0.0)
-    agc_max_gain_db: float = Field(default=6.0, ge=0.0)
+    agc_max_gain_db: float = Field(default=3.0, ge=0.0)
     agc_min_gain_db: float = Field(default=-20.0, le=0.0)
     input_gain_db: Span = Field(default=(-8.0, 4.0), description="gain before the AGC (or the fixed gain without it)")
     bit_depth: int = Field(default=16, ge=8, le=32)

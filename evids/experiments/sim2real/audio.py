@@ -69,6 +69,25 @@ class AudioClip:
         self.samples = np.asarray(self.samples, dtype=np.float32).reshape(-1)
 
 
+def read_wav_clips(folder: Path) -> list[AudioClip]:
+    """Real clips from a folder of Svanström-style ``<CLASS>_<NNN>.wav`` files (stereo mixed to mono):
+    odd NNN = calibration half, even NNN = evaluation half. A stand-in until the dataset reader of
+    ``simulator.formats.svanstrom`` is used by the harness."""
+    import soundfile
+
+    clips = []
+    for path in sorted(Path(folder).glob("*.wav")):
+        cls, _, number = path.stem.rpartition("_")
+        if cls not in CLASSES or not number.isdigit():
+            continue
+        data, sr = soundfile.read(str(path), dtype="float32", always_2d=True)
+        n = int(number)
+        clips.append(AudioClip(path.stem, cls, n, data.mean(axis=1), int(sr), "calibration" if n % 2 else "evaluation"))
+    if not clips:
+        raise ValueError(f"folder: no <CLASS>_<NNN>.wav clips in {folder}")
+    return clips
+
+
 # --------------------------------------------------------------------------------------------
 # Spectral statistics
 # --------------------------------------------------------------------------------------------
@@ -251,14 +270,20 @@ def _config_model():
 
     class AmbienceMix(BaseModel):
         model_config = ConfigDict(extra="forbid", frozen=True)
-        wind_db: Span = (32.0, 50.0)
-        gust_depth: Span = (0.2, 0.9)
+        wind_db: Span = (24.0, 42.0)
+        gust_depth: Span = (0.5, 1.0)
         traffic_probability: float = Field(default=0.4, ge=0.0, le=1.0)
-        traffic_db: Span = (36.0, 52.0)
+        traffic_db: Span = (30.0, 46.0)
         rain_probability: float = Field(default=0.15, ge=0.0, le=1.0)
-        rain_db: Span = (38.0, 52.0)
+        rain_db: Span = (32.0, 46.0)
         birdsong_probability: float = Field(default=0.4, ge=0.0, le=1.0)
-        birdsong_db: Span = (32.0, 48.0)
+        birdsong_db: Span = (25.0, 40.0)
+        residual_probability: float = Field(default=1.0, ge=0.0, le=1.0)
+        residual_db: Span = (20.0, 34.0)
+        rustle_probability: float = Field(default=0.5, ge=0.0, le=1.0)
+        rustle_db: Span = (18.0, 32.0)
+        aircraft_probability: float = Field(default=0.2, ge=0.0, le=1.0)
+        aircraft_db: Span = (35.0, 52.0)
 
     class SyntheticAudioConfig(BaseModel):
         """What the synthetic clips draw from (every span is (low, high); ranges log-uniform)."""
@@ -267,13 +292,13 @@ def _config_model():
         duration_s: float = Field(default=10.0, gt=0.0, le=60.0)
         sample_rate_hz: int = Field(default=44_100, ge=32_000, le=96_000)
         full_scale_pa: float = Field(default=0.1, gt=0.0, description="sample 1.0 == this pressure")
-        drone_kinds: list[str] = Field(default=["quadcopter", "hexacopter", "fixed_wing"], min_length=1)
-        drone_size_m: dict[str, Span] = {"quadcopter": (0.3, 0.6), "hexacopter": (0.6, 1.1), "fixed_wing": (1.0, 2.2)}
-        drone_range_m: list[Span] = Field(default=[(30.0, 250.0), (5.0, 40.0)], min_length=1,
+        drone_kinds: list[str] = Field(default=["quadcopter"], min_length=1)
+        drone_size_m: dict[str, Span] = {"quadcopter": (0.12, 0.5), "hexacopter": (0.5, 1.1), "fixed_wing": (1.0, 2.2)}
+        drone_range_m: list[Span] = Field(default=[(3.0, 20.0), (15.0, 80.0)], min_length=1,
                                           description="range spans, one picked uniformly per clip")
         drone_speed_mps: Span = (0.0, 10.0)
         elevation_deg: Span = (3.0, 45.0)
-        helicopter_range_m: Span = (150.0, 1500.0)
+        helicopter_range_m: Span = (60.0, 600.0)
         helicopter_speed_mps: Span = (0.0, 60.0)
         ambience: AmbienceMix = Field(default_factory=AmbienceMix)
         recorder: bool = Field(default=True, description="pass the mix through the recording chain when it exists")
@@ -324,7 +349,7 @@ def _logu(rng: np.random.Generator, span: tuple[float, float]) -> float:
 
 def _draw_ambience(rng: np.random.Generator, mix) -> dict[str, Any]:
     amb = {"wind_db": round(_u(rng, mix.wind_db), 1), "gust_depth": round(_u(rng, mix.gust_depth), 2)}
-    for bed in ("traffic", "rain", "birdsong"):
+    for bed in ("traffic", "rain", "birdsong", "residual", "rustle", "aircraft"):
         on = rng.random() < getattr(mix, f"{bed}_probability")
         level = _u(rng, getattr(mix, f"{bed}_db"))
         amb[f"{bed}_db"] = round(level, 1) if on else None
