@@ -43,7 +43,7 @@ def _flat(**kw) -> mic.RecorderConfig:
 def test_agc_steers_to_target_within_its_gain_limits():
     t = np.arange(4 * FS) / FS
     tone = np.sin(2 * np.pi * 1000 * t) * np.sqrt(2)           # rms 1 before scaling
-    cfg = _flat(agc_target_dbfs=(-20.0, -20.0), agc_release_s=(0.5, 0.5))
+    cfg = _flat(agc_target_dbfs=(-20.0, -20.0), agc_release_s=(0.5, 0.5), agc_max_gain_db=10.0)
     loud = mic.record(tone * 10 ** (-24 / 20), FS, seed=0, full_scale_pa=1.0, config=cfg)
     level = 20 * np.log10(np.sqrt(np.mean(loud[2 * FS:].astype(np.float64) ** 2)))
     assert level == pytest.approx(-20.0, abs=0.3)              # -24 dBFS raised 4 dB (< max gain) to the target
