@@ -70,7 +70,7 @@ LEGACY_ROTOR_NOISE = RotorNoise()
 # ranges of draw_rotor_noise (uniform unless said): see docs/AUDIO_RF.md "Rotor noise (issue 24)"
 ROTOR_NOISE_RANGES = {
     "harmonic_decay": (0.3, 1.2), "harmonic_top_hz": (3000.0, 10000.0), "broadband_offset_db": (0.0, 10.0),
-    "broadband_low_hz": (100.0, 400.0), "broadband_high_hz": (10000.0, 16000.0), "broadband_tilt_db": (-5.0, -2.5),
+    "broadband_low_hz": (100.0, 400.0), "broadband_high_hz": (13000.0, 16000.0), "broadband_tilt_db": (-5.0, -2.5),
     "bpf_modulation": (0.1, 0.6), "imbalance": (0.02, 0.15), "motor_line": (0.02, 0.15),
     "pwm_hz": (8000.0, 12000.0, 16000.0), "pwm_level": (0.0, 0.08), "amplitude_fluctuation_db": (1.0, 4.0),
     "amplitude_fluctuation_hz": (0.3, 3.0),
@@ -603,13 +603,13 @@ HELICOPTER_RANGES = {"radius_m": (4.0, 8.0), "tip_speed_mps": (190.0, 225.0), "m
                      "tail_ratio": (4.5, 6.5), "tail_blades": (2, 4), "pulse_ms": (0.5, 2.0),
                      "thump_db": (-16.0, -8.0), "slap_db": (-12.0, -4.0), "tail_db": (-16.0, -8.0),
                      "turbine_hz": (2000.0, 8000.0), "turbine_db": (-22.0, -10.0),
-                     "broadband_high_hz": (2500.0, 6000.0)}
+                     "broadband_high_hz": (6000.0, 14000.0)}
 
 
 def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random.Generator) -> np.ndarray:
     """Pressure at 1 m of a helicopter, parts drawn from ``HELICOPTER_RANGES`` (domain randomisation).
 
-    Rotor broadband 200 Hz-2.5..6 kHz (-5 dB/octave) modulated at the main BPF is the reference part;
+    Rotor broadband 200 Hz-6..14 kHz (-7 dB/octave) modulated at the main BPF is the reference part;
     main rotor: a train of blade pulses (Gaussian, 0.5-2 ms) at the BPF with per-pass amplitude
     jitter (-16..-8 dB) and a sharper blade-slap train (-12..-4 dB), tail rotor: lines k x its BPF (k^-1, -16..-8 dB),
     turbine: a tone with slow wander over 1-8 kHz broadband (-22..-10 dB). Phases run on the emission clock.
@@ -635,7 +635,7 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
                                               + rng.uniform(0, 2 * np.pi, size=(k.size, 1))), axis=0)
     f_turb = u("turbine_hz") * (1 + 0.01 * _smooth_random(rng, tau.size, sample_rate_hz, 0.5))
     turbine = np.cos(2 * np.pi * np.cumsum(f_turb) / sample_rate_hz) + 0.5 * _source_noise(rng, retarded, sample_rate_hz, 1000.0, 8000.0)
-    broad = _source_noise(rng, retarded, sample_rate_hz, 200.0, u("broadband_high_hz"), -5.0) * (1 + 0.5 * np.cos(2 * np.pi * phase))
+    broad = _source_noise(rng, retarded, sample_rate_hz, 200.0, u("broadband_high_hz"), -7.0) * (1 + 0.5 * np.cos(2 * np.pi * phase))
     parts = [(broad, 0.0), (pulses, u("thump_db")), (slap, u("slap_db")), (tail, u("tail_db")), (turbine, u("turbine_db"))]
     total = np.zeros(tau.size)
     for x, db in parts:
@@ -807,17 +807,17 @@ def birdsong_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_
 
 def residual_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
     """Residual outdoor sound (ISO 1996-2 'residual sound': what remains without specific sources):
-    broadband 50 Hz-10 kHz with a drawn tilt of -7..-4.5 dB/octave and a slow drift (4 dB std, 0.3 Hz)."""
-    tilt = float(rng.uniform(-7.0, -4.5))
+    broadband 50 Hz-10 kHz with a drawn tilt of -9..-6 dB/octave and a slow drift (4 dB std, 0.3 Hz)."""
+    tilt = float(rng.uniform(-9.0, -6.0))
     base = _shaped_noise(rng, n, sample_rate_hz, 50.0, 10000.0, tilt)
     drift = 10 ** (4.0 * _smooth_random(rng, n, sample_rate_hz, 0.3) / 20)
     return _scale_to(base * drift, level_db)
 
 
 def rustle_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
-    """Vegetation moved by the wind: 400 Hz-10 kHz noise, -4..-2 dB/octave, in gust-driven bursts
+    """Vegetation moved by the wind: 400 Hz-10 kHz noise, -6..-3 dB/octave, in gust-driven bursts
     (the envelope of low-passed noise at ~0.5 Hz) with fast leaf flutter (~8 Hz)."""
-    base = _shaped_noise(rng, n, sample_rate_hz, 400.0, 10000.0, float(rng.uniform(-4.0, -2.0)))
+    base = _shaped_noise(rng, n, sample_rate_hz, 400.0, 10000.0, float(rng.uniform(-6.0, -3.0)))
     gust = np.exp(1.2 * _smooth_random(rng, n, sample_rate_hz, 0.5)) ** 1.5
     flutter = 1.0 + 0.4 * _smooth_random(rng, n, sample_rate_hz, 8.0)
     return _scale_to(base * gust * np.abs(flutter), level_db)

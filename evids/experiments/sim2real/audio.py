@@ -69,6 +69,16 @@ class AudioClip:
         self.samples = np.asarray(self.samples, dtype=np.float32).reshape(-1)
 
 
+def real_audio_clips(bench) -> list[AudioClip]:
+    """Every audio clip of a ``simulator.formats.svanstrom.SvanstromBenchmark`` as an AudioClip
+    (mono float32, the benchmark's odd/even split as the half)."""
+    clips = []
+    for clip in bench.clips("audio"):
+        samples, sr = bench.audio(clip)
+        clips.append(AudioClip(clip.name, clip.cls, clip.number, samples, int(sr), clip.half))
+    return clips
+
+
 def read_wav_clips(folder: Path) -> list[AudioClip]:
     """Real clips from a folder of Svanström-style ``<CLASS>_<NNN>.wav`` files (stereo mixed to mono):
     odd NNN = calibration half, even NNN = evaluation half. A stand-in until the dataset reader of
@@ -277,7 +287,7 @@ def _config_model():
         rain_probability: float = Field(default=0.15, ge=0.0, le=1.0)
         rain_db: Span = (32.0, 46.0)
         birdsong_probability: float = Field(default=0.4, ge=0.0, le=1.0)
-        birdsong_db: Span = (25.0, 40.0)
+        birdsong_db: Span = (22.0, 36.0)
         residual_probability: float = Field(default=1.0, ge=0.0, le=1.0)
         residual_db: Span = (20.0, 34.0)
         rustle_probability: float = Field(default=0.5, ge=0.0, le=1.0)
@@ -294,7 +304,7 @@ def _config_model():
         full_scale_pa: float = Field(default=0.1, gt=0.0, description="sample 1.0 == this pressure")
         drone_kinds: list[str] = Field(default=["quadcopter"], min_length=1)
         drone_size_m: dict[str, Span] = {"quadcopter": (0.12, 0.5), "hexacopter": (0.5, 1.1), "fixed_wing": (1.0, 2.2)}
-        drone_range_m: list[Span] = Field(default=[(3.0, 20.0), (15.0, 80.0)], min_length=1,
+        drone_range_m: list[Span] = Field(default=[(2.0, 12.0), (8.0, 50.0)], min_length=1,
                                           description="range spans, one picked uniformly per clip")
         drone_speed_mps: Span = (0.0, 10.0)
         elevation_deg: Span = (3.0, 45.0)
@@ -302,6 +312,8 @@ def _config_model():
         helicopter_speed_mps: Span = (0.0, 60.0)
         ambience: AmbienceMix = Field(default_factory=AmbienceMix)
         recorder: bool = Field(default=True, description="pass the mix through the recording chain when it exists")
+        n_per_class: int = Field(default=20, ge=1, le=1000)
+        quick_n_per_class: int = Field(default=2, ge=1, le=1000)
 
         @model_validator(mode="after")
         def _check(self):
@@ -432,9 +444,11 @@ def helicopter_available() -> bool:
     return hasattr(acoustics, "helicopter_signature")
 
 
-def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int) -> list[AudioClip]:
+def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | None = None, *,
+                          quick: bool = False) -> list[AudioClip]:
     """``n_per_class`` DRONE, HELICOPTER (when the source exists) and BACKGROUND clips from the
     project's synthesiser, every parameter drawn from ``config`` and ``seed`` (deterministic).
+    ``n_per_class`` None takes the config's ``n_per_class`` (``quick_n_per_class`` when ``quick``).
 
     Clip j of class c draws its scene from ``rng_for(seed, "generation", 24, c, j)`` and its audio
     from the acoustics streams of seed ``clip_seed``; every clip carries the drawn ambience.
@@ -442,9 +456,11 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int) -> l
     from simulator.physics import acoustics as ac
     from simulator.physics.timeline import build_timeline
 
+    cfg = synthetic_audio_config(config)
+    if n_per_class is None:
+        n_per_class = cfg.quick_n_per_class if quick else cfg.n_per_class
     if n_per_class < 1:
         raise ValueError(f"n_per_class must be >= 1, got {n_per_class}")
-    cfg = synthetic_audio_config(config)
     sr, n = cfg.sample_rate_hz, int(round(cfg.duration_s * cfg.sample_rate_hz))
     classes = ["DRONE"] + (["HELICOPTER"] if helicopter_available() else []) + ["BACKGROUND"]
     clips: list[AudioClip] = []
@@ -452,7 +468,8 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int) -> l
         for j in range(n_per_class):
             rng = rng_for(seed, "generation", _SYNTH_TAG, CLASSES.index(cls), j)
             clip_seed = int(rng.integers(0, 2 ** 31 - 1))
-            ambience = ac.Ambience(**_draw_ambience(rng, cfg.ambience))
+            drawn = _draw_ambience(rng, cfg.ambience)
+            ambience = ac.Ambience(**{k: v for k, v in drawn.items() if k in ac.Ambience.model_fields})
             if cls == "DRONE":
                 scenario, _ = _drone_scenario(cfg, rng, f"synthetic_drone_{j:04d}")
                 timeline = build_timeline(scenario, clip_seed)

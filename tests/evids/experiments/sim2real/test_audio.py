@@ -146,3 +146,28 @@ def test_read_wav_clips_splits_odd_and_even(tmp_path):
         ("DRONE_001", "DRONE", 1, "calibration"), ("DRONE_002", "DRONE", 2, "evaluation"),
         ("HELICOPTER_013", "HELICOPTER", 13, "calibration")]
     assert clips[0].samples.dtype == np.float32 and np.allclose(clips[0].samples, 0.1, atol=1e-4)   # stereo mean
+
+
+def test_clip_count_from_config_and_quick():
+    cfg = {"duration_s": 1.0, "n_per_class": 2, "quick_n_per_class": 1, "drone_range_m": [[10.0, 20.0]]}
+    assert len(A.synthetic_audio_clips(cfg, 0, quick=True)) == 3
+    assert [c.number for c in A.synthetic_audio_clips(cfg, 0) if c.cls == "DRONE"] == [1, 2]
+
+
+def test_real_audio_clips_from_a_benchmark_reader():
+    class Clip:
+        def __init__(self, cls, number):
+            self.cls, self.number, self.name = cls, number, f"{cls}_{number:03d}"
+            self.half = "calibration" if number % 2 else "evaluation"
+
+    class Bench:
+        def clips(self, sensor):
+            assert sensor == "audio"
+            return [Clip("DRONE", 1), Clip("BACKGROUND", 4)]
+
+        def audio(self, clip):
+            return np.full(SR, 0.5 if clip.cls == "DRONE" else 0.1, dtype=np.float32), SR
+
+    clips = A.real_audio_clips(Bench())
+    assert [(c.name, c.cls, c.half, round(float(c.samples[0]), 6)) for c in clips] == [
+        ("DRONE_001", "DRONE", "calibration", 0.5), ("BACKGROUND_004", "BACKGROUND", "evaluation", 0.1)]
