@@ -12,6 +12,7 @@ STREAMS = {
     "rf": 6,
     "generation": 7,
     "camera": 8,
+    "sim2real": 9,
 }
 
 
