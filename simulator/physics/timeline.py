@@ -94,6 +94,32 @@ def rotor_hover_rpm(kind: str, size_m: float) -> float:
     return 0.0
 
 
+# Flight-controller RPM corrections of each rotor (attitude hold, gusts): relative std and correlation
+# time drawn per target (domain randomisation; Heutschi et al. 2020 model drone pitch with random RPM
+# jitter; the spread is an assumption, not a fit). Zero-sum across rotors: attitude corrections trade
+# thrust between rotors and leave the total (the hover RPM of the flight state) unchanged.
+RPM_FLUCTUATION_STD = (0.005, 0.03)
+RPM_FLUCTUATION_TIME_S = (0.05, 0.5)
+
+
+def rotor_rpm_fluctuation(rng: np.random.Generator, n_frames: int, n_rotors: int, frame_rate_hz: float) -> np.ndarray:
+    """Multiplicative per-rotor RPM factors (F, R): 1 + a zero-sum Gauss-Markov (AR(1)) fluctuation with a
+    drawn relative std and correlation time (``RPM_FLUCTUATION_STD``, ``RPM_FLUCTUATION_TIME_S``)."""
+    if n_rotors < 2 or n_frames < 1:
+        return np.ones((n_frames, n_rotors))
+    std = rng.uniform(*RPM_FLUCTUATION_STD)
+    tau = rng.uniform(*RPM_FLUCTUATION_TIME_S)
+    a = float(np.exp(-1.0 / (frame_rate_hz * tau)))
+    from scipy.signal import lfilter
+
+    drive = rng.standard_normal((n_frames, n_rotors))
+    drive[0] /= np.sqrt(max(1.0 - a * a, 1e-12))                # start in the stationary distribution
+    x = lfilter([np.sqrt(1.0 - a * a)], [1.0, -a], drive, axis=0)
+    x -= x.mean(axis=1, keepdims=True)
+    x *= np.sqrt(n_rotors / (n_rotors - 1.0))                  # per-rotor std stays ``std`` after removing the mean
+    return 1.0 + std * x
+
+
 def _rotor_count(kind: str) -> int:
     return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1}.get(kind, 0)
 
@@ -241,8 +267,10 @@ def build_timeline(scenario: Scenario, seed: int, n_frames: int | None = None) -
             base_rpm = hover * np.sqrt(np.clip(np.linalg.norm(vel, axis=-1) / 15.0, 0.3, 3.0))
         else:
             base_rpm = hover * np.sqrt(np.clip(thrust_ratio, 0.2, 4.0))
-        detune = 1.0 + 0.01 * rng_for(seed, "rotor_detune", index).standard_normal(n_rotors)
-        rpm = base_rpm[:, None] * detune[None, :]
+        rotor_rng = rng_for(seed, "rotor_detune", index)
+        detune = 1.0 + 0.01 * rotor_rng.standard_normal(n_rotors)
+        rpm = base_rpm[:, None] * detune[None, :] * rotor_rpm_fluctuation(rotor_rng, count, n_rotors,
+                                                                           scenario.frame_rate_hz)
         angle = np.concatenate([[0.0], np.cumsum(base_rpm[:-1] / 60.0 * 2 * np.pi / scenario.frame_rate_hz)])
         flap = 2 * np.pi * target.wingbeat_hz * times if target.kind == "bird" else np.zeros(count)
         track = TargetTrack(
