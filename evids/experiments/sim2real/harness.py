@@ -340,6 +340,15 @@ def format_table(summary: dict[str, Any]) -> str:
     lines = []
     for sensor, res in summary["sensors"].items():
         if sensor not in VISUAL_SENSORS:
+            for model, r in res.get("classifier", {}).items():
+                lines.append(f"audio ({model}): ROC-AUC on the real evaluation half")
+                for cond, v in r.items():
+                    if isinstance(v, dict):
+                        lines.append(f"  {v.get('description', cond):<52} {v['roc_auc']:.3f} "
+                                     f"[{v['roc_auc_ci95'][0]:.3f}, {v['roc_auc_ci95'][1]:.3f}]")
+                if "ratio_synthetic_over_real_auc" in r:
+                    lines.append(f"  ratio (b)/(a) {r['ratio_synthetic_over_real_auc']:.3f}; helicopter windows called drone by (b) "
+                                 f"{100 * (r['b_synthetic'].get('helicopter_called_drone') or 0):.0f} %")
             continue
         c = res["classifier"]
         lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({c['n_test_clips']} clips, "
