@@ -12,6 +12,8 @@ STREAMS = {
     "rf": 6,
     "generation": 7,
     "camera": 8,
+    "terrain": 9,
+    "tracking": 10,
 }
 
 
