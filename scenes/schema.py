@@ -15,7 +15,7 @@ from scenes.terrain_assets import check_asset
 
 SCHEMA_VERSION = 1
 
-TargetKind = Literal["quadcopter", "hexacopter", "fixed_wing", "bird", "airliner"]
+TargetKind = Literal["quadcopter", "hexacopter", "fixed_wing", "bird", "airliner", "helicopter"]
 Vec3 = tuple[float, float, float]
 RGB = tuple[
     Annotated[float, Field(ge=0.0, le=1.0)],
@@ -108,6 +108,13 @@ class Flyby(_Model):
 Trajectory = Annotated[Union[Waypoints, Hover, Orbit, Flyby], Field(discriminator="kind")]
 
 
+class HelicopterRotor(_Model):
+    """A helicopter's main rotor (diameter = the target's size_m); the tail rotor is geared to it."""
+
+    main_blades: int = Field(default=4, ge=2, le=8)
+    main_rpm: float = Field(default=400.0, gt=0.0, le=1000.0, description="typical light helicopters: 350-550 rpm")
+
+
 class Target(_Model):
     name: str = Field(min_length=1)
     kind: TargetKind
@@ -116,6 +123,15 @@ class Target(_Model):
     materials: dict[str, Material] = Field(default_factory=dict, description="per-role overrides")
     thermal: Thermal = Field(default_factory=Thermal)
     wingbeat_hz: float = Field(default=4.0, gt=0.0, le=30.0, description="birds only")
+    rotor: HelicopterRotor | None = Field(default=None, description="helicopters only (required for them)")
+
+    @model_validator(mode="after")
+    def _rotor(self) -> "Target":
+        if self.kind == "helicopter" and self.rotor is None:
+            raise ValueError("rotor: a helicopter needs a main rotor, e.g. rotor: {main_blades: 4, main_rpm: 400}")
+        if self.kind != "helicopter" and self.rotor is not None:
+            raise ValueError(f"rotor: only helicopters take a rotor block (kind is {self.kind!r})")
+        return self
 
 
 class Sun(_Model):

@@ -91,11 +91,13 @@ def rotor_hover_rpm(kind: str, size_m: float) -> float:
         return 5500.0 * (0.45 / size_m) ** 0.5
     if kind == "fixed_wing":
         return 7000.0 * (1.5 / size_m) ** 0.5
+    if kind == "helicopter":
+        return 400.0
     return 0.0
 
 
 def _rotor_count(kind: str) -> int:
-    return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1}.get(kind, 0)
+    return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1, "helicopter": 1}.get(kind, 0)
 
 
 def _normalise(v: np.ndarray) -> np.ndarray:
@@ -149,6 +151,7 @@ def _part_roles(kind: str) -> tuple[str, ...]:
         "fixed_wing": ("fuselage", "wing", "tail", "motor", "prop", "body"),
         "bird": ("body", "head", "wing", "feather"),
         "airliner": ("fuselage", "wing", "tail", "engine"),
+        "helicopter": ("fuselage", "tail", "engine", "exhaust", "body", "prop"),
     }[kind]
 
 
@@ -278,7 +281,9 @@ def build_timeline(scenario: Scenario, seed: int, n_frames: int | None = None) -
         rotation, thrust_ratio = _attitude(target.kind, vel, acc)
         n_rotors = _rotor_count(target.kind)
         hover = rotor_hover_rpm(target.kind, target.size_m)
-        if target.kind == "fixed_wing":
+        if target.kind == "helicopter":   # constant-speed rotor (governed); collective pitch varies instead
+            base_rpm = np.full(count, float(target.rotor.main_rpm))
+        elif target.kind == "fixed_wing":
             base_rpm = hover * np.sqrt(np.clip(np.linalg.norm(vel, axis=-1) / 15.0, 0.3, 3.0))
         else:
             base_rpm = hover * np.sqrt(np.clip(thrust_ratio, 0.2, 4.0))
@@ -289,7 +294,8 @@ def build_timeline(scenario: Scenario, seed: int, n_frames: int | None = None) -
         track = TargetTrack(
             target_id=index + 1, name=target.name, kind=target.kind, size_m=target.size_m,
             position_m=pos, velocity_mps=vel, rotation=rotation, rotor_rpm=rpm, rotor_angle_rad=angle,
-            flap_phase_rad=flap, n_blades=2 if n_rotors else 0,
+            flap_phase_rad=flap,
+            n_blades=target.rotor.main_blades if target.kind == "helicopter" else (2 if n_rotors else 0),
         )
         track.part_temperature_k = _part_temperatures(scenario, target, pos, rig_origin, sky, times)
         tracks.append(track)
