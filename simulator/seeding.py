@@ -12,8 +12,9 @@ STREAMS = {
     "rf": 6,
     "generation": 7,
     "camera": 8,
-    "terrain": 9,
-    "tracking": 10,
+    "sim2real": 9,
+    "terrain": 10,
+    "tracking": 11,
 }
 
 
