@@ -60,10 +60,10 @@ def real_stats(root: str, sensor: str, frames_per_clip: int, sheet: Path | None)
     by_class: dict[str, dict] = {}
     skipped = []
     for clip in clips:
-        n = bench.video_frame_count(clip)
         try:
+            n = bench.video_frame_count(clip)
             labels = bench.aligned_labels(clip, n)
-        except FormatError as err:   # a clip whose labels do not fit its video is left out (named)
+        except FormatError as err:   # a missing video or labels that do not fit it: left out, named
             skipped.append(f"{clip.media}: {err}")
             continue
         absent.append(sum(b is None for b in labels) / max(len(labels), 1))
