@@ -36,8 +36,18 @@ def frame_stats(frame: np.ndarray) -> dict:
     slope = float(np.polyfit(y, rows, 1)[0])    # grey levels from top to bottom of the frame
     texture = np.abs(np.diff(g, axis=1)).mean(axis=1)
     bands = np.array([b.mean() for b in np.array_split(texture, BANDS)])
-    ground = bool(bands[-1] > max(TEXTURE_FLOOR, TEXTURE_RATIO * bands[0]))
-    return {"median": float(np.median(g)), "row_gradient": slope, "ground": ground,
+    threshold = max(TEXTURE_FLOOR, TEXTURE_RATIO * bands[0])
+    ground = bool(bands[-1] > threshold)
+    horizon = None
+    if ground:   # the highest row below which the texture (mean over h/16 rows) stays above the threshold
+        k = max(1, h // 16)
+        run = np.convolve(texture, np.ones(k) / k, mode="valid")
+        below = run > threshold
+        r = len(below) - 1
+        while r >= 0 and below[r]:
+            r -= 1
+        horizon = (r + 1 + k / 2) / h
+    return {"median": float(np.median(g)), "row_gradient": slope, "ground": ground, "horizon_y": horizon,
             "texture_top": float(bands[0]), "texture_bottom": float(bands[-1])}
 
 
@@ -56,7 +66,7 @@ def real_stats(root: str, sensor: str, frames_per_clip: int, sheet: Path | None)
     bench = open_benchmark(root)
     clips = bench.clips(sensor, half="calibration")
     assert all(c.number % 2 == 1 for c in clips)
-    per_frame, absent, centres, sheet_frames = [], [], [], []
+    per_frame, absent, centres, sheet_frames, above = [], [], [], [], []
     by_class: dict[str, dict] = {}
     skipped = []
     for clip in clips:
@@ -76,6 +86,8 @@ def real_stats(root: str, sensor: str, frames_per_clip: int, sheet: Path | None)
             if box is not None:
                 x, yb, w, hb = box
                 centres.append(((x + w / 2) / frame.shape[1], (yb + hb / 2) / frame.shape[0]))
+                if s["horizon_y"] is not None:
+                    above.append(s["horizon_y"] - centres[-1][1])
             if sheet is not None and i == idx[len(idx) // 2] and len(sheet_frames) < 48:
                 sheet_frames.append(frame if frame.ndim == 3 else np.repeat(frame[..., None], 3, -1))
         c = by_class.setdefault(clip.cls, {"absent": []})
@@ -95,6 +107,8 @@ def real_stats(root: str, sensor: str, frames_per_clip: int, sheet: Path | None)
         "absent_fraction_all": round(float(np.mean(absent)), 4),
         "absent_by_class": {k: summarise(v["absent"]) for k, v in sorted(by_class.items())},
         "target_centre_x": summarise(list(cx)), "target_centre_y": summarise(list(cy)),
+        "horizon_y": summarise([s["horizon_y"] for s in per_frame if s["horizon_y"] is not None]),
+        "horizon_minus_target_y": summarise(above),
     }
 
 

@@ -44,6 +44,17 @@ class TerrainMesh:
     _cx: float = 0.0
     _cy: float = 0.0
 
+    def subset(self, face_mask: np.ndarray) -> tuple["TerrainMesh", np.ndarray]:
+        """(the mesh of the masked faces, the original index of each kept vertex)."""
+        faces = self.faces[np.asarray(face_mask, bool)]
+        keep = np.unique(faces)
+        remap = np.full(len(self.vertices), -1, np.int64)
+        remap[keep] = np.arange(len(keep))
+        m = TerrainMesh(self.vertices[keep], remap[faces], self.asset[keep], self.normal[keep], self.texture[keep],
+                        self.temperature_offset_k[keep])
+        m._cx, m._cy = self._cx, self._cy
+        return m, keep
+
 
 class _Noise:
     """Seeded smooth 2-D value noise (bilinear on a periodic lattice), sum of octaves, ~unit rms."""

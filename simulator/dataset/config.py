@@ -24,7 +24,7 @@ DISTRACTOR_KINDS = ("bird", "airliner", "helicopter")
 
 # sub-streams of the "generation" stream per sequence (never renumber: it would change datasets)
 _S_PRESET, _S_SEED, _S_TARGET, _S_TRAJ, _S_SUN, _S_AIR, _S_PARTS, _S_CAMERA, _S_DISTRACT = range(1, 10)
-_S_BINS, _S_FOV, _S_MODE, _S_CLOUDS = range(10, 14)   # scene-realism fields (issue 23)
+_S_BINS, _S_FOV, _S_MODE, _S_CLOUDS, _S_ELEV = range(10, 15)   # scene-realism fields (issue 23)
 _SPLIT_TAG = 1000
 
 
@@ -110,6 +110,10 @@ class Randomisation(_Model):
     distance_bins: list[DistanceBin] | None = Field(default=None, min_length=1,
                                                     description="replaces range_m: a weighted mixture of distance ranges")
     hfov_deg: Range | None = Field(default=None, description="fixed RGB field of view (replaces target_px)")
+    elevation_fov_fraction: Range | None = Field(
+        default=None, description="replaces elevation_deg: the drone's elevation above the horizon as a fraction of the "
+                                  "thermal camera's vertical field of view (0.35 puts the horizon 0.35 frame heights "
+                                  "below a centred drone)")
     fixed_camera_fraction: float = Field(default=0.0, ge=0.0, le=1.0,
                                          description="share of sequences with a fixed camera (targets enter and leave)")
     fixed_camera_offset_deg: Range = Field(default_factory=lambda: Range(min=-8.0, max=8.0),
@@ -143,7 +147,7 @@ class Randomisation(_Model):
         for b in self.distance_bins or []:
             if b.range_m.min <= 0:
                 raise ValueError(f"distance_bins range_m must be > 0, got [{b.range_m.min}, {b.range_m.max}]")
-        for name in ("hfov_deg", "tracking_lag_s", "tracking_error_deg", "tracking_loss_rate_hz"):
+        for name in ("hfov_deg", "tracking_lag_s", "tracking_error_deg", "tracking_loss_rate_hz", "elevation_fov_fraction"):
             value = getattr(self, name)
             if value is not None and (value.min < 0 or (name == "hfov_deg" and not 0 < value.min <= value.max < 170)):
                 raise ValueError(f"{name} out of range, got [{value.min}, {value.max}]")
@@ -354,6 +358,14 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_di
         rig["look_at_m"] = None
         rig["rgb"]["hfov_deg"] = round(hfov, 4)
         rig["thermal"]["hfov_deg"] = round(min(60.0, hfov * ratio), 4)
+        if r.elevation_fov_fraction is not None:
+            tw, th_px = config.thermal_image_size or config.image_size
+            vfov = 2 * math.degrees(math.atan(math.tan(math.radians(rig["thermal"]["hfov_deg"]) / 2) * th_px / tw))
+            new_el = r.elevation_fov_fraction.draw(rng_for(seed, "generation", index, _S_ELEV)) * vfov
+            anchor = np.asarray(_trajectory_anchor(Target.model_validate(targets[p])), dtype=np.float64)
+            wanted_z = max(cam_pos[2] + distance * math.sin(math.radians(new_el)), 3.0)
+            targets[p]["trajectory"] = _shift_z(targets[p]["trajectory"], wanted_z - anchor[2])
+            elevation = new_el
         _camera_mode(r, rig, targets[p], cam_pos, bearing, elevation, rng_for(seed, "generation", index, _S_MODE))
 
     rng = rng_for(seed, "generation", index, _S_SUN)
@@ -463,6 +475,18 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_di
     from scenes.loader import scenario_from_dict
 
     return source, scenario_from_dict(data, source=f"{config.name}: sequence {index}")
+
+
+def _shift_z(trajectory: dict, dz: float) -> dict:
+    """The same trajectory moved up by dz metres."""
+    t = dict(trajectory)
+    for key in ("center_m", "start_m"):
+        if t.get(key) is not None:
+            x, y, z = t[key]
+            t[key] = (x, y, round(z + dz, 3))
+    if t.get("points_m") is not None:
+        t["points_m"] = [(x, y, round(z + dz, 3)) for x, y, z in t["points_m"]]
+    return t
 
 
 def _draw_bin(bins: list[DistanceBin], rng: np.random.Generator) -> float:

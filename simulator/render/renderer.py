@@ -237,7 +237,7 @@ class _View:
                     self.keys.append((slot, ti, role))
                     face_counts.append(len(geo.faces(role)))
                     vert_counts.append(len(geo.world(0)[role]))
-        self.terrain = owner.terrain
+        self.terrain = owner.terrain_seen[which][0] if owner.terrain is not None else None
         if self.terrain is not None:
             # terrain: one copy per slot plus one in the background slot (index batch_frames), which
             # holds no targets and serves the ROI background (self.sky)
@@ -347,7 +347,8 @@ class _View:
             self.params["targets.face_emission"] = mi.Float(np.vstack([np.repeat(emission, self.face_counts, axis=0), pin]).ravel())
         else:
             self.params["targets.vertex_albedo"] = mi.Float(self._per_vertex(albedo, None).ravel())
-            self.params["targets.vertex_emission"] = mi.Float(self._per_vertex(emission, owner.terrain_emission(self.which)).ravel())
+            seen = owner.terrain_seen[self.which][1]
+            self.params["targets.vertex_emission"] = mi.Float(self._per_vertex(emission, owner.terrain_emission(self.which)[seen]).ravel())
         self.params.update()
         self._slot_frames = list(slot_frames)
         return tiles
@@ -550,6 +551,29 @@ def _layout_geometry(timeline: Timeline, layout: Timeline, cameras: tuple[str, .
     return [TrackGeometry(track) for track in other]
 
 
+def _faces_in_view(mesh, cam, margin_px: float = 4.0) -> np.ndarray:
+    """(n_faces,) bool: faces whose projection touches some frame's image (plus a margin), or that
+    cross the camera plane (kept, conservatively). A triangle with every vertex in front projects to
+    the triangle of its projected vertices, so the test is exact for those. Culled faces cannot be
+    hit by any primary or coverage ray; only indirect light from them is lost (the RGB path tracer's
+    bounce to the ground then sees the sky map's ground colour instead)."""
+    keep = np.zeros(len(mesh.faces), bool)
+    poses: set[bytes] = set()
+    for i in range(len(cam.forward)):
+        pose = cam.origin_m[i].tobytes() + cam.forward[i].tobytes() + cam.up[i].tobytes()
+        if pose in poses:
+            continue
+        poses.add(pose)
+        px, depth = cam.project(i, mesh.vertices)
+        front = depth > 1e-3
+        fx, fy, fd = px[mesh.faces, 0], px[mesh.faces, 1], front[mesh.faces]
+        all_front = fd.all(axis=1)
+        inside = ((fx.max(axis=1) >= -margin_px) & (fx.min(axis=1) <= cam.width_px + margin_px)
+                  & (fy.max(axis=1) >= -margin_px) & (fy.min(axis=1) <= cam.height_px + margin_px))
+        keep |= (all_front & inside) | (fd.any(axis=1) & ~all_front)
+    return keep
+
+
 class SequenceRenderer:
     """Renders every frame of a Timeline in batched launches; geometry and shape set stay fixed, so
     Dr.Jit compiles once per camera. ``cameras`` limits the work (e.g. RGB only for small video);
@@ -571,6 +595,7 @@ class SequenceRenderer:
         self._targets = {t.name: t for t in scenario.targets}
         self.geometry = [TrackGeometry(track) for track in timeline.targets]
         self.terrain = None
+        self.terrain_seen: dict[str, tuple] = {}   # per camera: (the faces any frame sees, their vertex index)
         self._terrain_emission: dict[str, np.ndarray] = {}
         if scenario.terrain is not None:
             from scenes.terrain import build_terrain
@@ -594,8 +619,11 @@ class SequenceRenderer:
                     row.append(projected_boxes(px, depth, cam.width_px, cam.height_px))
                     max_range = max(max_range, float(np.linalg.norm(verts - cam.origin_m[i], axis=1).max()))
                 frames_boxes.append(row)
-            if self.terrain is not None:   # rays must reach the farthest terrain (sets the far clip)
-                max_range = max(max_range, float(np.linalg.norm(self.terrain.vertices - cam.origin_m[0], axis=1).max()) + 10.0)
+            if self.terrain is not None:   # only the terrain some frame can see; rays must reach its farthest point
+                self.terrain_seen[which] = self.terrain.subset(_faces_in_view(self.terrain, cam))
+                seen = self.terrain_seen[which][0]
+                if len(seen.faces):
+                    max_range = max(max_range, float(np.linalg.norm(seen.vertices - cam.origin_m[0], axis=1).max()) + 10.0)
             self.boxes[which] = frames_boxes
             self.plans[which] = plan_camera(frames_boxes, cam.width_px, cam.height_px, max_range,
                                             batch_frames=batch_frames, roi=roi)

@@ -68,3 +68,14 @@ def test_terrain_goes_into_every_sequence_and_bad_values_name_the_field():
         _cfg(terrain={"emissivity": {"asphalt": -1}})
     with pytest.raises(UserInputError, match="cloud_cover"):
         _cfg(cloud_cover=[0.5, 1.5])
+
+
+def test_elevation_as_a_fraction_of_the_vertical_field_of_view():
+    cfg = _cfg(elevation_fov_fraction=[0.3, 0.3], trajectory_kinds=["hover"], range_m=[200, 200])
+    for i in range(5):
+        scene = randomised_scenario(cfg, 2, i)[1]
+        th = scene.camera_rig.thermal
+        vfov = 2 * math.degrees(math.atan(math.tan(math.radians(th.hfov_deg) / 2) * th.height_px / th.width_px))
+        c = np.subtract(scene.targets[0].trajectory.center_m, scene.camera_rig.position_m)
+        expected_z = max(200.0 * math.sin(math.radians(0.3 * vfov)), 3.0 - scene.camera_rig.position_m[2])
+        assert c[2] == pytest.approx(expected_z, abs=2e-3)
