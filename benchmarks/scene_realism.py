@@ -3,6 +3,7 @@ gradient, ground in view, target absent, target position, on the Svanström benc
 CALIBRATION half (odd clip numbers) only, plus PNG contact sheets.
 
     python benchmarks/scene_realism.py --real <benchmark folder or git mirror> --out <dir> [--frames 8]
+    python benchmarks/scene_realism.py --synthetic <native dataset> --out <dir>
 
 The dataset path comes from --real or EVIDS_SVANSTROM. Results: <out>/scene_stats.json and
 <out>/contact_<sensor>.png. docs/SIM2REAL_VISUAL_SCENE.md quotes the figures.
@@ -112,6 +113,47 @@ def real_stats(root: str, sensor: str, frames_per_clip: int, sheet: Path | None)
     }
 
 
+def synthetic_stats(dataset: Path, sensor: str, sheet: Path | None) -> dict:
+    """The same statistics on a native dataset (evids generate): thermal_agc (IR) or rgb (visible)
+    8-bit frames as the camera model recorded them, labels of the primary target (id 1)."""
+    from PIL import Image
+
+    folder, camera = ("thermal_agc", "thermal") if sensor == "ir" else ("rgb", "rgb")
+    per_frame, absent, centres, above, sheet_frames = [], [], [], [], []
+    for seq in sorted((dataset / "sequences").iterdir()):
+        labels = json.loads((seq / "labels.json").read_text())["frames"]
+        files = sorted((seq / folder).glob("*.png"))
+        flags = []
+        for f, lab in zip(files, labels):
+            frame = np.asarray(Image.open(f))
+            st = frame_stats(frame)
+            per_frame.append(st)
+            rec = next((r for r in lab[camera] if r["id"] == 1), None)
+            present = rec is not None and rec["exist"] == 1
+            flags.append(not present)
+            if present:
+                x, y, w, h = rec["box"]
+                centres.append(((x + w / 2) / frame.shape[1], (y + h / 2) / frame.shape[0]))
+                if st["horizon_y"] is not None:
+                    above.append(st["horizon_y"] - centres[-1][1])
+            if sheet is not None and f == files[len(files) // 2] and len(sheet_frames) < 48:
+                sheet_frames.append(frame if frame.ndim == 3 else np.repeat(frame[..., None], 3, -1))
+        absent.append(float(np.mean(flags)))
+    if sheet is not None:
+        write_sheet(sheet_frames, sheet)
+    cx, cy = (np.array(centres)[:, 0], np.array(centres)[:, 1]) if centres else ([], [])
+    return {
+        "sequences": len(absent), "frames": len(per_frame),
+        "median_level": summarise([s["median"] for s in per_frame]),
+        "row_gradient": summarise([s["row_gradient"] for s in per_frame]),
+        "ground_fraction": round(float(np.mean([s["ground"] for s in per_frame])), 3),
+        "absent_fraction_per_clip": summarise(absent), "absent_fraction_all": round(float(np.mean(absent)), 4),
+        "target_centre_x": summarise(list(cx)), "target_centre_y": summarise(list(cy)),
+        "horizon_y": summarise([s["horizon_y"] for s in per_frame if s["horizon_y"] is not None]),
+        "horizon_minus_target_y": summarise(above),
+    }
+
+
 def write_sheet(frames: list[np.ndarray], path: Path, cols: int = 8, width: int = 160) -> None:
     from PIL import Image
 
@@ -133,7 +175,14 @@ def main() -> None:
     ap.add_argument("--real", default=os.environ.get("EVIDS_SVANSTROM"))
     ap.add_argument("--out", required=True, type=Path)
     ap.add_argument("--frames", type=int, default=8, help="frames sampled per clip")
+    ap.add_argument("--synthetic", type=Path, help="a native dataset (evids generate) to measure the same way")
     args = ap.parse_args()
+    if args.synthetic is not None:
+        out = {s: synthetic_stats(args.synthetic, s, args.out / f"contact_synthetic_{s}.png") for s in ("ir", "visible")}
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "scene_stats_synthetic.json").write_text(json.dumps(out, indent=1))
+        print(json.dumps(out, indent=1))
+        return
     if not args.real:
         ap.error("give --real or set EVIDS_SVANSTROM")
     out = {s: real_stats(args.real, s, args.frames, args.out / f"contact_real_{s}.png") for s in ("ir", "visible")}

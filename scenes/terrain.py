@@ -16,10 +16,10 @@ from scenes.schema import Building, Mast, Scenario, Terrain, TreeLine
 from scenes.terrain_assets import TERRAIN_ASSETS
 
 ASSET_NAMES: tuple[str, ...] = tuple(TERRAIN_ASSETS)
-GROUND_RINGS = 56
-GROUND_SECTORS = 256
+GROUND_RINGS = 80
+GROUND_SECTORS = 512
 GROUND_INNER_M = 0.5
-TREE_COLUMN_M = 4.0          # spacing of crown columns along a tree line
+TREE_COLUMN_M = 3.0          # spacing of crown columns along a tree line
 MAX_TREE_COLUMNS = 1500
 RELIEF_TAPER_M = (50.0, 250.0)  # relief is zero within the first radius, full beyond the second
 
@@ -178,20 +178,25 @@ def _tree_line(b: _Builder, line: TreeLine, relief: _Relief, rng: np.random.Gene
     crowns = np.convolve(rng.standard_normal(n + 2), np.ones(3) / math.sqrt(3.0), mode="valid")[:n]
     slow = np.convolve(rng.standard_normal(n + 30), np.ones(31) / math.sqrt(31.0), mode="valid")[:n]
     top = height * np.clip(1.0 + line.height_jitter * (0.6 * crowns + 0.5 * slow), 0.25, 2.0)
-    mid = 0.55 * top
-    rows = [base, base + mid, base + top]
+    # rounded crowns: the upper rows pull in towards each column's neighbours' mean (less jagged)
+    smooth_top = np.convolve(np.pad(top, 1, mode="edge"), np.ones(3) / 3, mode="valid")
+    fractions = (0.0, 0.5, 0.8, 1.0)
+    rows = [base + f * (top if f < 0.9 else 0.5 * (top + smooth_top)) for f in fractions]
+    rows[2] = base + 0.8 * (0.6 * top + 0.4 * smooth_top)
+    k = len(rows)
     verts = np.vstack([np.stack([x, y, r], -1) for r in rows])
     inward = -np.stack([e, nn, np.zeros(n)], -1)   # normals face the rig
-    normals = np.vstack([inward] * 3)
+    normals = np.vstack([inward] * k)
     faces = []
-    for r in range(2):
+    for r in range(k - 1):
         i = np.arange(n - 1) + r * n
         faces.append(np.stack([i, i + 1, i + n + 1], -1))
         faces.append(np.stack([i, i + n + 1, i + n], -1))
     column_tex = rng.standard_normal(n)
-    tex = np.concatenate([column_tex * 0.6, column_tex, column_tex * 0.8])
-    dt = np.concatenate([-0.3 * np.ones(n), np.zeros(n), 0.3 * np.ones(n)]) * asset.temperature_texture_k \
-        + asset.temperature_texture_k * 0.5 * np.tile(column_tex, 3)
+    leaf_tex = rng.standard_normal((k, n))   # per-vertex speckle: foliage is not a smooth wall
+    tex = np.concatenate([column_tex * (0.6 + 0.4 * f) + 0.8 * leaf_tex[j] for j, f in enumerate(fractions)])
+    dt = np.concatenate([(f - 0.5) * 0.6 * np.ones(n) for f in fractions]) * asset.temperature_texture_k \
+        + asset.temperature_texture_k * (0.5 * np.tile(column_tex, k) + 0.5 * leaf_tex.ravel())
     b.add(verts, np.vstack(faces), line.asset, normals, _texture_multiplier(tex, asset.texture), dt)
 
 
@@ -259,7 +264,7 @@ def build_terrain(scenario: Scenario, rng: np.random.Generator) -> TerrainMesh:
         raise ValueError("scenario has no terrain")
     cx, cy = float(scenario.camera_rig.position_m[0]), float(scenario.camera_rig.position_m[1])
     relief = _Relief(rng, terrain.relief_m, cx, cy)
-    noise = _Noise(rng, (160.0, 40.0, 9.0))
+    noise = _Noise(rng, (160.0, 40.0, 9.0, 2.5))
     trees, buildings, masts = list(terrain.tree_lines), list(terrain.buildings), list(terrain.masts)
     if terrain.procedural is not None:
         t, bl, m = _procedural(terrain.procedural, rng)

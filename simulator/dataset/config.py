@@ -122,6 +122,8 @@ class Randomisation(_Model):
                                                description="fixed camera: optical-axis elevation (null: the drone's)")
     tracking_lag_s: Range | None = None
     tracking_error_deg: Range | None = None
+    tracking_error_fov_fraction: Range | None = Field(default=None, description="replaces tracking_error_deg: "
+                                                      "rms pointing error as a fraction of the RGB horizontal FOV")
     tracking_loss_rate_hz: Range | None = None
     cloud_cover: Range | None = Field(default=None, description="sky.clouds.coverage, 0-1")
     terrain: Terrain | None = Field(default=None, description="the ground and horizon clutter of every sequence")
@@ -147,7 +149,8 @@ class Randomisation(_Model):
         for b in self.distance_bins or []:
             if b.range_m.min <= 0:
                 raise ValueError(f"distance_bins range_m must be > 0, got [{b.range_m.min}, {b.range_m.max}]")
-        for name in ("hfov_deg", "tracking_lag_s", "tracking_error_deg", "tracking_loss_rate_hz", "elevation_fov_fraction"):
+        for name in ("hfov_deg", "tracking_lag_s", "tracking_error_deg", "tracking_loss_rate_hz", "elevation_fov_fraction",
+                     "tracking_error_fov_fraction"):
             value = getattr(self, name)
             if value is not None and (value.min < 0 or (name == "hfov_deg" and not 0 < value.min <= value.max < 170)):
                 raise ValueError(f"{name} out of range, got [{value.min}, {value.max}]")
@@ -509,13 +512,17 @@ def _camera_mode(r: Randomisation, rig: dict, target: dict, cam_pos: np.ndarray,
         rig["track_target"] = None
         rig["tracking"] = None
         return
-    if r.tracking_lag_s is None and r.tracking_error_deg is None and r.tracking_loss_rate_hz is None:
+    if r.tracking_lag_s is None and r.tracking_error_deg is None and r.tracking_loss_rate_hz is None \
+            and r.tracking_error_fov_fraction is None:
         return
 
     def pick(value: Range | None, draw: float, default: float) -> float:
         return default if value is None else round(value.min + (value.max - value.min) * draw, 4)
 
-    rig["tracking"] = {"lag_s": pick(r.tracking_lag_s, lag, 0.0), "error_deg": pick(r.tracking_error_deg, err, 0.0),
+    error = pick(r.tracking_error_deg, err, 0.0)
+    if r.tracking_error_fov_fraction is not None:
+        error = round(pick(r.tracking_error_fov_fraction, err, 0.0) * float(rig["rgb"]["hfov_deg"]), 4)
+    rig["tracking"] = {"lag_s": pick(r.tracking_lag_s, lag, 0.0), "error_deg": error,
                        "loss_rate_hz": pick(r.tracking_loss_rate_hz, loss, 0.0)}
 
 

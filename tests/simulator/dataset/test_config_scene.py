@@ -79,3 +79,10 @@ def test_elevation_as_a_fraction_of_the_vertical_field_of_view():
         c = np.subtract(scene.targets[0].trajectory.center_m, scene.camera_rig.position_m)
         expected_z = max(200.0 * math.sin(math.radians(0.3 * vfov)), 3.0 - scene.camera_rig.position_m[2])
         assert c[2] == pytest.approx(expected_z, abs=2e-3)
+
+
+def test_tracking_error_scales_with_the_field_of_view():
+    cfg = _cfg(tracking_error_fov_fraction=[0.1, 0.1], tracking_lag_s=[0.2, 0.2])
+    for i in range(3):
+        rig = randomised_scenario(cfg, 4, i)[1].camera_rig
+        assert rig.tracking.error_deg == pytest.approx(0.1 * rig.rgb.hfov_deg, abs=1e-3) and rig.tracking.lag_s == 0.2
