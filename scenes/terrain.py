@@ -19,8 +19,10 @@ ASSET_NAMES: tuple[str, ...] = tuple(TERRAIN_ASSETS)
 GROUND_RINGS = 80
 GROUND_SECTORS = 512
 GROUND_INNER_M = 0.5
-TREE_COLUMN_M = 3.0          # spacing of crown columns along a tree line
-MAX_TREE_COLUMNS = 1500
+TREE_COLUMN_M = 3.0          # widest spacing of crown columns along a tree line
+TREE_COLUMN_PX = 6.0         # ... and at most this many pixels of the sharpest camera (narrow fields of view)
+MIN_TREE_COLUMN_M = 0.8
+MAX_TREE_COLUMNS = 4000
 RELIEF_TAPER_M = (50.0, 250.0)  # relief is zero within the first radius, full beyond the second
 
 
@@ -161,12 +163,14 @@ def _ground(b: _Builder, terrain: Terrain, relief: _Relief, noise: _Noise, cx: f
           asset.temperature_texture_k * n)
 
 
-def _tree_line(b: _Builder, line: TreeLine, relief: _Relief, rng: np.random.Generator, cx: float, cy: float) -> None:
+def _tree_line(b: _Builder, line: TreeLine, relief: _Relief, rng: np.random.Generator, cx: float, cy: float,
+               pixel_rad: float) -> None:
     asset = TERRAIN_ASSETS[line.asset]
     height = line.height_m if line.height_m is not None else asset.height_m
     a0, a1 = line.azimuth_deg
     arc_m = math.radians(a1 - a0) * line.distance_m
-    n = int(min(MAX_TREE_COLUMNS, max(2, math.ceil(arc_m / TREE_COLUMN_M) + 1)))
+    column_m = float(np.clip(TREE_COLUMN_PX * pixel_rad * line.distance_m, MIN_TREE_COLUMN_M, TREE_COLUMN_M))
+    n = int(min(MAX_TREE_COLUMNS, max(2, math.ceil(arc_m / column_m) + 1)))
     az = np.linspace(a0, a1, n)
     e, nn = _compass(az)
     # the tree line's edge is not a perfect arc: its distance wanders by a few per cent
@@ -174,12 +178,22 @@ def _tree_line(b: _Builder, line: TreeLine, relief: _Relief, rng: np.random.Gene
     dist = line.distance_m * wander
     x, y = cx + dist * e, cy + dist * nn
     base = relief(x, y) - 1.0
-    # crowns: independent per column, smoothed over ~2 columns, plus slow variation along the line
-    crowns = np.convolve(rng.standard_normal(n + 2), np.ones(3) / math.sqrt(3.0), mode="valid")[:n]
+    # crowns: trees 4-9 m wide along the line, each a rounded (half-ellipse) crown on its own height,
+    # the line's top is the highest crown over each column; slow variation along the line on top
+    along = np.linspace(0.0, arc_m, n)
+    widths = rng.uniform(4.0, 9.0, int(arc_m / 4.0) + 3)
+    centres = np.cumsum(widths) - widths / 2 - widths[0]
+    tree_h = height * np.clip(1.0 + line.height_jitter * 0.6 * rng.standard_normal(len(widths)), 0.3, 2.0)
     slow = np.convolve(rng.standard_normal(n + 30), np.ones(31) / math.sqrt(31.0), mode="valid")[:n]
-    top = height * np.clip(1.0 + line.height_jitter * (0.6 * crowns + 0.5 * slow), 0.25, 2.0)
-    # rounded crowns: the upper rows pull in towards each column's neighbours' mean (less jagged)
-    smooth_top = np.convolve(np.pad(top, 1, mode="edge"), np.ones(3) / 3, mode="valid")
+    k = np.clip(np.searchsorted(centres, along), 1, len(centres) - 2)
+    top = np.zeros(n)
+    for shift in (-1, 0, 1):
+        j = k + shift
+        r = 0.55 * widths[j]
+        u = np.clip(1.0 - ((along - centres[j]) / r) ** 2, 0.0, None)
+        top = np.maximum(top, np.where(u > 0, tree_h[j] - 0.6 * r + 0.6 * r * np.sqrt(u), 0.0))
+    top = np.maximum(top, 0.45 * height) * np.clip(1.0 + line.height_jitter * 0.5 * slow, 0.5, 1.5)
+    smooth_top = top
     fractions = (0.0, 0.5, 0.8, 1.0)
     rows = [base + f * (top if f < 0.9 else 0.5 * (top + smooth_top)) for f in fractions]
     rows[2] = base + 0.8 * (0.6 * top + 0.4 * smooth_top)
@@ -271,8 +285,10 @@ def build_terrain(scenario: Scenario, rng: np.random.Generator) -> TerrainMesh:
         trees, buildings, masts = trees + t, buildings + bl, masts + m
     b = _Builder()
     _ground(b, terrain, relief, noise, cx, cy)
+    rig = scenario.camera_rig
+    pixel_rad = min(math.radians(rig.rgb.hfov_deg) / rig.rgb.width_px, math.radians(rig.thermal.hfov_deg) / rig.thermal.width_px)
     for line in trees:
-        _tree_line(b, line, relief, rng, cx, cy)
+        _tree_line(b, line, relief, rng, cx, cy, pixel_rad)
     for item in list(buildings) + list(masts):
         _structure(b, item, relief, rng, cx, cy)
     return b.mesh(cx, cy)
