@@ -13,6 +13,8 @@ STREAMS = {
     "generation": 7,
     "camera": 8,
     "sim2real": 9,
+    "terrain": 10,
+    "tracking": 11,
 }
 
 
