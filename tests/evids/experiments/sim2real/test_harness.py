@@ -29,7 +29,8 @@ def quick_run(tmp_path_factory):
     from tests.simulator.formats.svanstrom_miniature import write_miniature
 
     root = tmp_path_factory.mktemp("s2r")
-    real = write_miniature(root / "real", numbers=(1, 2, 3, 4), n_frames=6, ir_size=(64, 48), visible_size=(96, 80))
+    real = write_miniature(root / "real", numbers=(1, 2, 3, 4), n_frames=6, ir_size=(64, 48), visible_size=(96, 80),
+                           audio_s=2.0)
     (real / "Data" / "Video_IR" / "IR_BIRD_004_LABELS.mat").unlink()      # a damaged clip: no labels
     out = root / "run"
     proc = _cli("sim2real", "--real", str(real), "--out", str(out), "--quick", "--no-progress")
@@ -40,13 +41,13 @@ def test_quick_run_writes_summary_page_and_sheets(quick_run):
     real, out, proc = quick_run
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((out / "sim2real.json").read_text())
-    assert summary["quick"] is True and set(summary["sensors"]) == {"ir", "visible"}
+    assert summary["quick"] is True and set(summary["sensors"]) == {"ir", "visible", "audio"}
     for sensor in ("ir", "visible"):
         res = summary["sensors"][sensor]
         conds = res["classifier"]["conditions"]
         assert list(conds) == list(classify.CONDITIONS)
         assert all(0.0 <= c["estimate"] <= 1.0 and c["ci_low"] <= c["estimate"] <= c["ci_high"] for c in conds.values())
-        assert res["n_clips"]["real_evaluation"] == (5 if sensor == "ir" else 6) and res["n_clips"]["synthetic"] == 3
+        assert res["n_clips"]["real_evaluation"] == (7 if sensor == "ir" else 8) and res["n_clips"]["synthetic"] == 4
         # the calibration half trains, the evaluation half tests: no clip in both
         assert res["classifier"]["train_clips"]["a_real"] == res["n_clips"]["real_calibration"]
         assert res["statistics"]["DRONE"]["background"]["real_evaluation"]["n"] > 0
@@ -57,6 +58,9 @@ def test_quick_run_writes_summary_page_and_sheets(quick_run):
     page = (out / "sim2real.html").read_text()
     assert "Sim-to-real" in page and "(b) synthetic only" in page and "data:image/png;base64" in page
     assert "ratio (b)/(a)" in proc.stdout
+    audio = summary["sensors"]["audio"]
+    assert set(audio["classifier"]) == {"cnn", "logreg"} and audio["n_clips"]["evaluation"] == 6
+    assert (out / "sheets" / audio["figure"]).stat().st_size > 1000 and "helicopter windows called drone" in page
 
 
 def test_strict_stops_at_the_damaged_clip_and_bad_input_exits_2(quick_run, tmp_path):
