@@ -46,6 +46,9 @@ def main(argv: list[str] | None = None) -> None:
     from degradations.errors import DegradationError
 
     try:
+        from simulator.render.mitsuba_setup import requested_variant
+
+        requested_variant()  # a bad EVIDS_MITSUBA_VARIANT fails every command at once, not mid-render
         app(args=argv, standalone_mode=True)
     except (UserInputError, DegradationError) as exc:
         if debug:
