@@ -52,6 +52,7 @@ from evids.gating import GateParams, HysteresisGate, sweep_gates
 from evids.metrics import paired_bootstrap, paired_permutation_test
 from evids.models.backbones import MODALITIES
 from evids.runfolder import mark_stage, write_csv, write_json
+from simulator.files import environment_record
 from scenes.errors import UserInputError
 from simulator.files import write_atomic
 
@@ -65,9 +66,9 @@ MODALITY_STREAMS = {"audio": ("audio",), "video": ("video",), "rf": ("rf_spec", 
 # ------------------------------------------------------------------------------------------
 
 def _versions() -> dict[str, str]:
-    from simulator.files import package_versions
+    from simulator.files import environment_record
 
-    return package_versions(("evids", "torch", "numpy", "scipy", "librosa", "mitsuba"))
+    return environment_record()["versions"]  # evids and every numeric dependency (run.json: commit, lock)
 
 
 # ------------------------------------------------------------------------------------------
@@ -238,6 +239,7 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
                   "segments": n_seg, "training_seeds": cfg.models.seeds, "noise_seeds": cfg.protocol.noise_seeds,
                   "hyper_parameters": cfg.models.model_dump(mode="json"), "training": record,
                   "data_seconds": round(data_s, 2), "versions": _versions(),
+                  "environment": {k: v for k, v in environment_record().items() if k != "versions"},
                   "torch_threads": torch.get_num_threads()}
     write_json(run_dir / "train.json", train_info)
     mark_stage(run_dir, "train", time.perf_counter() - t0, {"data_seconds": round(data_s, 2)})
