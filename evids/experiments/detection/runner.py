@@ -859,15 +859,14 @@ def time_gating(seqs: list[SequenceData], models, cfg: DetectionConfig, gate: di
 
 
 def _verdict(c: dict | None, better: str, worse: str, unit: float = 100.0, what: str = "pp") -> str:
+    """The numbers and the verdict of the one rule (evids.metrics.significance.comparison_verdict)."""
+    from evids.metrics.significance import comparison_verdict, verdict_sentence
+
     if c is None or not np.isfinite(c.get("diff", np.nan)):
         return "not measured"
-    txt = (f"{better} - {worse} = {c['diff'] * unit:+.1f} {what} (sequence-bootstrap 95% CI [{c['ci_low'] * unit:+.1f}, "
-           f"{c['ci_high'] * unit:+.1f}], sign-flip p = {c['p']:.3f}, n = {c['n']} sequences, MDE {c['mde'] * unit:.1f} {what})")
-    if c["ci_low"] > 0 and c["p"] < 0.05:
-        return txt + f": {better} is better."
-    if c["ci_high"] < 0 and c["p"] < 0.05:
-        return txt + f": {better} is worse."
-    return txt + ": cannot be decided at this size."
+    txt = (f"{better} - {worse} = {c['diff'] * unit:+.2f} {what} (sequence-bootstrap 95% CI [{c['ci_low'] * unit:+.2f}, "
+           f"{c['ci_high'] * unit:+.2f}], sign-flip p = {c['p']:.3f}, n = {c['n']} sequences, MDE {c['mde'] * unit:.2f} {what})")
+    return txt + ": " + verdict_sentence(comparison_verdict(c["diff"], c["ci_low"], c["ci_high"], c["mde"]), better, worse) + "."
 
 
 def _comp(summary, set_name, a, b, metric="state_acc"):
@@ -891,7 +890,7 @@ def _uauc_txt(u) -> str:
 
 
 def headline(summary: dict[str, Any], cfg: DetectionConfig) -> dict[str, str]:
-    """The four headline questions, answered from the numbers (or 'cannot be decided at this size')."""
+    """The four headline questions, answered from the numbers by the one verdict rule (or 'undecided')."""
     xs = cfg.crossover_set
     out = {}
     q1 = [_verdict(_comp(summary, xs, "e_ds/fused", "d_average/fused"), "DS", "average"),
