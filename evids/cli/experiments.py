@@ -85,7 +85,9 @@ def sweep(
             typer.echo(f"{kind}: done")
 
 
-def report(run: Path = typer.Argument(..., help="A run folder after `evids evaluate` (and optionally `sweep`).")) -> None:
+def report(run: Path = typer.Argument(..., help="A run folder after `evids evaluate` (and optionally `sweep`)."),
+           progress: bool = typer.Option(False, "--progress/--no-progress",
+                                         help="Accepted like every command's (the report shows no progress bar).")) -> None:
     """Write RUN/report.html (self-contained, opens offline) and RUN/metrics.json."""
     from evids.report import build_report
 
@@ -106,7 +108,10 @@ def demo(
     and a gate sweep, and write OUT/report.html (about 10 minutes on 2 CPU cores; --quick: toy scale).
     """
     if detection:
+        from evids.cli import TRACKEVAL_INSTALL, require_module
         from evids.experiments.detection import run_detection_demo
+
+        require_module("trackeval", "evids demo --detection", TRACKEVAL_INSTALL)
 
         typer.echo(f"report: {run_detection_demo(out, typer.echo)}")
         return
