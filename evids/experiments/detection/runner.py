@@ -10,6 +10,7 @@ truth and our result files), ``metrics.json``, ``tables/*.csv``, ``run.json`` (s
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -539,6 +540,10 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
     from simulator.formats.antiuav import export_antiuav
 
     exports = run_dir / "exports"
+    if exports.is_dir() and not exports.is_symlink():
+        # this stage's own output inside the run folder (checked above: config.json/data.json), rebuilt in
+        # full below: a rerun after an interrupted evaluate replaces its partial export instead of refusing it
+        shutil.rmtree(exports)
     test_sets: dict[str, list[dict]] = {}
     for k, (name, path) in enumerate(sorted(data["test"].items())):
         ents = [e for e in dataset_entries(Path(path), ("test",), f"data.test.{name}") if e["split"] == "test"]
