@@ -322,7 +322,7 @@ class _View:
     # ---- per batch ----------------------------------------------------------------------------
     def place(self, slot_frames: list[int]) -> dict[tuple[int, int], Tile]:
         """Put frame ``slot_frames[s]`` into slot ``s``: geometry and per-face materials; returns tiles."""
-        mi, plan, cam, owner = self.mi, self.plan, self.camera, self.owner
+        plan, cam, owner = self.plan, self.camera, self.owner
         tiles: dict[tuple[int, int], Tile] = {}
         for slot, frame in enumerate(slot_frames):
             for ti in range(plan.tiles_per_frame):

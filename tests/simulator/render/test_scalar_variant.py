@@ -72,7 +72,8 @@ def test_requested_variant_validates(monkeypatch):
 @pytest.mark.skipif(mitsuba_setup.find_libllvm() is None, reason="the llvm reference needs libLLVM >= 16")
 def test_scalar_variant_render_matches_llvm(tmp_path, monkeypatch):
     env = {**os.environ, "EVIDS_MITSUBA_VARIANT": "scalar_rgb", "PYTHONPATH": str(ROOT)}
-    script = f"from tests.simulator.render.test_scalar_variant import render_tiny; render_tiny({json.dumps(str(tmp_path / 's.npz'))})"
+    target = json.dumps(str(tmp_path / "s.npz"))
+    script = f"from tests.simulator.render.test_scalar_variant import render_tiny; render_tiny({target})"
     proc = subprocess.run([sys.executable, "-c", script], env=env, cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     monkeypatch.delenv("EVIDS_MITSUBA_VARIANT", raising=False)
