@@ -399,7 +399,7 @@ RENDER_PACKAGES = ("evids", "mitsuba", "drjit", "numpy", "colour-science", "open
 
 NUMERIC_PACKAGES = ("numpy", "scipy", "torch", "drjit", "mitsuba", "opencv-python-headless", "scikit-learn")
 SOURCE_ROOT = Path(__file__).resolve().parents[1]
-LOCK_FILE = "lock/requirements.txt"
+DEPENDENCY_LOCK = "lock/requirements.txt"  # the committed lock (run.sh installs it)
 
 
 @lru_cache(maxsize=1)
@@ -421,7 +421,7 @@ def environment_record() -> dict:
                 commit = head.stdout.strip() + ("+dirty" if dirty else "")
         except (OSError, subprocess.SubprocessError):
             commit = None
-    lock = SOURCE_ROOT / LOCK_FILE
+    lock = SOURCE_ROOT / DEPENDENCY_LOCK
     lock_sha = hashlib.sha256(lock.read_bytes()).hexdigest() if lock.is_file() else None
     return {"git_commit": commit, "lock_sha256": lock_sha,
             "versions": package_versions(("evids", *NUMERIC_PACKAGES, "librosa"))}
