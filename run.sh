@@ -5,7 +5,7 @@
 #   bash run.sh test   install (with test extras), then run the whole test suite
 # Installs: Debian libllvm19 when root with apt (Dr.Jit's fast CPU backend needs libLLVM >= 16),
 # Debian chromium for the test job (the report page is checked in a headless browser), and a local
-# virtual environment .venv with this package and its pinned dependencies.
+# virtual environment .venv with this package and the locked dependencies (lock/, one venv for both jobs).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")"
 
@@ -48,35 +48,43 @@ precompile() {
     .venv/lib/python3*/site-packages >/dev/null || true
 }
 
+# install_python: one .venv for both jobs, from the committed lock (lock/requirements.txt: every
+# package of the base and the audio, dev, ray and tracking extras, pinned with sha256 hashes; refresh
+# with `bash lock/refresh`), so demo and test share one install and every machine gets the tested
+# versions. The stamp is the hash of pyproject.toml and the lock: when either changes the venv is
+# rebuilt from empty, so it holds exactly the lock. A Python other than the lock's (3.11) installs
+# from pyproject.toml's ranges instead, with a warning.
+LOCK_EXTRAS="audio,dev,ray,svanstrom,tracking"
 install_python() {
-  local extras="$1"
-  local stamp=".venv/.installed-$(sha256sum pyproject.toml | cut -c1-16)-${extras//,/_}"
-  if [ ! -x .venv/bin/python ]; then
-    echo "[setup] creating .venv"
-    python3 -m venv .venv
+  local stamp=".venv/.installed-$(cat pyproject.toml lock/requirements.txt lock/nodeps.txt | sha256sum | cut -c1-16)"
+  [ -f "$stamp" ] && return 0
+  local lock_python have_python
+  lock_python=$(sed -n 's/.*--python-version \([0-9.]*\).*/\1/p' lock/requirements.txt | head -1)
+  have_python=$(python3 -c 'import sys; print("%d.%d" % sys.version_info[:2])')
+  echo "[setup] creating .venv and installing the locked dependencies (first run takes a few minutes)"
+  python3 -m venv --clear .venv
+  .venv/bin/python -m pip install -q --upgrade pip >/dev/null
+  # --no-compile: precompile (below) byte-compiles in parallel instead
+  if [ "$have_python" = "$lock_python" ]; then
+    .venv/bin/python -m pip install -q --no-compile --require-hashes --no-deps -r lock/requirements.txt
+    .venv/bin/python -m pip install -q --no-compile --require-hashes --no-deps -r lock/nodeps.txt
+    .venv/bin/python -m pip install -q --no-compile --no-deps -e .
+  else
+    echo "[setup] warning: the lock is for Python $lock_python, this is $have_python: installing the newest" \
+      "versions pyproject.toml allows (untested combination)"
+    .venv/bin/python -m pip install -q --no-compile -e ".[${LOCK_EXTRAS}]"
+    # trackeval declares the GUI opencv-python, which would replace the headless cv2: no dependencies
+    .venv/bin/python -m pip install -q --no-deps "$(grep -m1 '^trackeval==' lock/nodeps.txt | cut -d' ' -f1)"
   fi
-  if [ ! -f "$stamp" ]; then
-    echo "[setup] installing the package and dependencies into .venv (first run takes a few minutes)"
-    .venv/bin/python -m pip install -q --upgrade pip >/dev/null
-    # --no-compile: precompile (below) byte-compiles in parallel instead
-    .venv/bin/python -m pip install -q --no-compile -e ".[${extras}]"
-    if [[ ",$extras," == *",dev,"* || ",$extras," == *",tracking,"* ]]; then
-      # trackeval 1.3.0 (HOTA/CLEAR/Identity on NumPy 2) declares the GUI build opencv-python, which would
-      # overwrite the headless cv2 we pin; its metrics import no cv2, so install it without dependencies
-      # (its other requirements, pycocotools and tabulate, come with the extras).
-      .venv/bin/python -m pip install -q --no-deps "trackeval==1.3.0"
-    fi
-    precompile
-    rm -f .venv/.installed-*
-    touch "$stamp"
-  fi
+  precompile
+  touch "$stamp"
 }
 
 job="${1:-}"
 case "$job" in
   demo)
     install_system
-    install_python "audio,tracking,svanstrom"   # tracking: trackeval for `evids demo --detection`; svanstrom: `evids sim2real`
+    install_python
     shift
     .venv/bin/evids demo --out out/demo "$@"
     echo "open out/demo/report.html"
@@ -84,10 +92,11 @@ case "$job" in
   test)
     install_system
     install_chromium
-    install_python "audio,dev,ray,svanstrom"
+    install_python
     shift
     set +e
-    .venv/bin/python -m pytest -q -p no:cacheprovider -n 2 "$@"
+    # --durations=25: the slowest tests in every run's output (docs/TESTING.md says why they are slow)
+    .venv/bin/python -m pytest -q -p no:cacheprovider -n 2 --durations=25 "$@"
     status=$?
     set -e
     if [ "$status" = 5 ]; then echo "error: pytest collected no tests"; exit 1; fi

@@ -1,5 +1,6 @@
 """Run-folder I/O shared by the experiment runner (which writes) and the report (which reads):
-JSON and CSV written atomically, and the per-stage record in ``run.json``."""
+JSON and CSV written atomically, and the per-stage record in ``run.json`` (with the environment:
+git commit, lock hash, numeric dependency versions; see simulator.files.environment_record)."""
 from __future__ import annotations
 
 import csv
@@ -11,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from simulator.files import write_atomic
+from simulator.files import environment_record, write_atomic
 
 
 def _jsonable(x: Any) -> Any:
@@ -55,6 +56,7 @@ def mark_stage(run_dir: Path, stage: str, seconds: float, extra: dict | None = N
     run = read_run(run_dir)
     run.setdefault("stages", {})[stage] = {"seconds": round(seconds, 2), "finished_utc": time.strftime(
         "%Y-%m-%dT%H:%M:%SZ", time.gmtime()), **(extra or {})}
+    run["environment"] = environment_record()  # every run folder (train, demo, detect) marks stages
     write_json(run_dir / "run.json", run)
 
 

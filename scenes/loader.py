@@ -58,7 +58,7 @@ def load_validated(path_or_name: str | Path | dict, model: type[ModelT], library
     if library_dir is not None and not path.suffix and "/" not in text_arg and not path.exists():
         path = Path(library_dir) / f"{text_arg}.yaml"
         if not path.is_file():
-            raise UserInputError(f"unknown {kind} {text_arg!r}; valid presets: {', '.join(names)}")
+            raise UserInputError(f"unknown {kind} preset {text_arg!r}; valid presets: {', '.join(names)}")
     if not path.is_file():
         hint = f"; presets: {', '.join(names)}" if names else ""
         raise UserInputError(f"{kind} file {text_arg!r} does not exist{hint}")
@@ -71,7 +71,7 @@ def scenario_from_dict(data: Any, source: str = "<scenario>") -> Scenario:
 
 def load_scenario(path_or_name: str | Path) -> Scenario:
     """Load a scenario from a YAML path, or from a preset name (no path separator, no suffix)."""
-    return load_validated(path_or_name, Scenario, LIBRARY_DIR, "scene preset")
+    return load_validated(path_or_name, Scenario, LIBRARY_DIR, "scene")
 
 
 def scenario_to_yaml(scenario: Scenario) -> str:

@@ -15,6 +15,7 @@ import secrets
 import shutil
 import socket
 from contextlib import contextmanager
+from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
 from typing import Iterable, Iterator
@@ -394,6 +395,36 @@ def _read_lock(fd: int) -> dict:
 
 
 RENDER_PACKAGES = ("evids", "mitsuba", "drjit", "numpy", "colour-science", "opencv-python-headless")
+
+
+NUMERIC_PACKAGES = ("numpy", "scipy", "torch", "drjit", "mitsuba", "opencv-python-headless", "scikit-learn")
+SOURCE_ROOT = Path(__file__).resolve().parents[1]
+DEPENDENCY_LOCK = "lock/requirements.txt"  # the committed lock (run.sh installs it)
+
+
+@lru_cache(maxsize=1)
+def environment_record() -> dict:
+    """What a run folder records to be traced later: the git commit of the source tree (None when
+    it is not a git checkout; ``+dirty`` when tracked files differ), the sha256 of the committed
+    lock (None when the source tree has none) and the versions of evids and every numeric dependency."""
+    import subprocess
+
+    commit = None
+    if (SOURCE_ROOT / ".git").exists():
+        try:
+            def git(*args: str) -> subprocess.CompletedProcess:
+                return subprocess.run(["git", "-C", str(SOURCE_ROOT), *args], capture_output=True, text=True, timeout=20)
+
+            head = git("rev-parse", "HEAD")
+            if head.returncode == 0:
+                dirty = git("status", "--porcelain", "--untracked-files=no").stdout.strip()
+                commit = head.stdout.strip() + ("+dirty" if dirty else "")
+        except (OSError, subprocess.SubprocessError):
+            commit = None
+    lock = SOURCE_ROOT / DEPENDENCY_LOCK
+    lock_sha = hashlib.sha256(lock.read_bytes()).hexdigest() if lock.is_file() else None
+    return {"git_commit": commit, "lock_sha256": lock_sha,
+            "versions": package_versions(("evids", *NUMERIC_PACKAGES, "librosa"))}
 
 
 def package_versions(packages: tuple[str, ...] = RENDER_PACKAGES) -> dict[str, str]:

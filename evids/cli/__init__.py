@@ -21,6 +21,43 @@ app = typer.Typer(
 )
 
 
+def _no_placeholder_for_flags() -> None:
+    """Recent typer prints a ``<bool>`` type beside every ``--flag/--no-flag`` in --help, as if the
+    flag took a value: show no type for flags, and ranged types without the word "range" (older
+    typer, without display_type_rich, shows neither)."""
+    from typer.core import TyperOption
+
+    original = getattr(TyperOption, "display_type_rich", None)
+    if original is None or getattr(original, "evids_flags", False):
+        return
+
+    def display_type_rich(self, ctx):  # noqa: ANN001 - typer's signature
+        if getattr(self, "is_flag", False):
+            return None
+        # "<float range> [0.0<=x<=0.99]" -> "<float> [0.0<=x<=0.99]": the range follows anyway, and the
+        # shorter type column leaves the help text room (export --help was squeezed into ~40 columns)
+        return original(self, ctx).replace(" range>", ">")
+
+    display_type_rich.evids_flags = True
+    TyperOption.display_type_rich = display_type_rich
+
+
+_no_placeholder_for_flags()
+
+TRACKEVAL_INSTALL = ("bash run.sh installs it; with pip: pip install --no-deps trackeval==1.3.0 (the tracking extra "
+                     "cannot bring it: trackeval declares the GUI opencv-python, which would replace "
+                     "opencv-python-headless)")
+
+
+def require_module(module: str, what: str, install: str) -> None:
+    """An optional dependency checked at a command's start (not minutes into it): UserInputError,
+    one line naming what needs it and how to install it (the extra)."""
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        raise UserInputError(f"{what} needs the Python package {module!r}, which is not installed: {install}")
+
+
 def _register_all() -> None:
     from evids.cli import degrade as degrade_cli
     from evids.cli import detect as detect_cli
@@ -48,6 +85,9 @@ def main(argv: list[str] | None = None) -> None:
     from degradations.errors import DegradationError
 
     try:
+        from simulator.render.mitsuba_setup import requested_variant
+
+        requested_variant()  # a bad EVIDS_MITSUBA_VARIANT fails every command at once, not mid-render
         app(args=argv, standalone_mode=True)
     except (UserInputError, DegradationError) as exc:
         if debug:

@@ -29,6 +29,9 @@ def train(
 @detect_app.command("evaluate")
 def evaluate(run: Path = typer.Argument(..., help="A run folder written by `evids detect train`.")) -> None:
     """Fit thresholds on val, run conditions (a)-(h) on the test sets, metrics and headline answers."""
+    from evids.cli import TRACKEVAL_INSTALL, require_module
+
+    require_module("trackeval", "evids detect (tracking metrics)", TRACKEVAL_INSTALL)
     from evids.experiments.detection.runner import evaluate as run_evaluate
 
     run_evaluate(run, typer.echo)
@@ -49,6 +52,9 @@ def run_all(
     out: Path = typer.Option(..., "--out", "-o", help="Run folder."),
 ) -> None:
     """train + evaluate + report in one go."""
+    from evids.cli import TRACKEVAL_INSTALL, require_module
+
+    require_module("trackeval", "evids detect (tracking metrics)", TRACKEVAL_INSTALL)
     from evids.experiments.detection import run_detection
 
     path = run_detection(config, out, typer.echo)

@@ -85,7 +85,9 @@ def sweep(
             typer.echo(f"{kind}: done")
 
 
-def report(run: Path = typer.Argument(..., help="A run folder after `evids evaluate` (and optionally `sweep`).")) -> None:
+def report(run: Path = typer.Argument(..., help="A run folder after `evids evaluate` (and optionally `sweep`)."),
+           progress: bool = typer.Option(False, "--progress/--no-progress",
+                                         help="Accepted like every command's (the report shows no progress bar).")) -> None:
     """Write RUN/report.html (self-contained, opens offline) and RUN/metrics.json."""
     from evids.report import build_report
 
@@ -106,7 +108,10 @@ def demo(
     and a gate sweep, and write OUT/report.html (about 10 minutes on 2 CPU cores; --quick: toy scale).
     """
     if detection:
+        from evids.cli import TRACKEVAL_INSTALL, require_module
         from evids.experiments.detection import run_detection_demo
+
+        require_module("trackeval", "evids demo --detection", TRACKEVAL_INSTALL)
 
         typer.echo(f"report: {run_detection_demo(out, typer.echo)}")
         return
@@ -131,12 +136,14 @@ def audit(
     strips, mean MFCC and mean spectrum on segments where the drone is not observable) fitted on
     train and scored on test, balanced accuracy with 95 % scene-bootstrap CIs.
 
-    Exit status 0 when every baseline is at chance, 3 when one beats chance beyond its CI
-    (a shortcut: something other than the target separates the classes), 2 for bad input.
+    Exit status 0 when no baseline beats chance, 3 when one beats chance beyond its CI and by the
+    tolerance (a shortcut: something other than the target separates the classes), 2 for bad input.
+    Verdicts follow docs/EXPERIMENTS.md's rule; the seed is the audit config's, as in a run's audit.
 
     Example: evids audit out/demo/data
     """
     from evids.experiments.audit import audit_clips, dataset_split
+    from evids.metrics.significance import separating_digits
     from evids.experiments.data import load_clips
     from simulator.files import write_atomic
 
@@ -146,9 +153,11 @@ def audit(
         raise UserInputError(f"--json: {str(json_out)!r} exists; choose a new file")
     clips = load_clips(dataset, progress)
     split = dataset_split(clips)
-    res = audit_clips(clips, split)
+    res = audit_clips(clips, split)  # AuditConfig's seed: the same as a run's audit stage
     for r in res["baselines"]:
-        score = "n/a" if r["score"] is None else f"{r['score']:.3f} [{r['ci_low']:.3f}, {r['ci_high']:.3f}]"
+        # enough digits that the printed CI agrees with the label (0.50004 prints 0.50004, not 0.500)
+        score = "n/a" if r["score"] is None else (f"{r['score']:.3f} [{separating_digits(r['ci_low'], 0.5)}, "
+                                                 f"{separating_digits(r['ci_high'], 0.5)}]")
         typer.echo(f"{r['variant']:<20} {r['feature']:<20} {r['model']:<9} {score:<24} {r['status']}")
     if json_out is not None:
         import json
@@ -157,7 +166,9 @@ def audit(
     if res["shortcut"]:
         typer.echo("audit: SHORTCUT found (a target-blind baseline beats chance)")
         raise typer.Exit(3)
-    typer.echo(f"audit: every target-blind baseline is at chance ({res['n_scored']} scored)")
+    undecided = sum(1 for r in res["baselines"] if r.get("decisive") and r.get("verdict") == "undecided")
+    typer.echo(f"audit: no shortcut ({res['n_scored']} scored"
+               + (f"; {undecided} undecided at this size)" if undecided else "; every decisive baseline at chance)"))
 
 
 def register(app: typer.Typer) -> None:

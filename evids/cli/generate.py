@@ -66,6 +66,10 @@ def generate(
         return
     if clips is not None:
         raise UserInputError("--clips applies to --format trident only; use --sequences")
+    if executor == "ray":
+        from evids.cli import require_module
+
+        require_module("ray", "--executor ray", "pip install -e '.[ray]' (bash run.sh installs it)")
     from simulator.dataset.generate import GenerationFailed, generate_dataset
 
     try:
@@ -120,6 +124,11 @@ def export(
     bad = [f for f in formats if f not in valid]
     if bad or not formats:
         raise UserInputError(f"--format: unknown format(s) {bad or [fmt]}; valid: {', '.join(sorted(valid))}")
+    from evids.cli import require_module
+
+    for f, module, extra in (("zarr", "zarr", "zarr"), ("webdataset", "webdataset", "formats")):
+        if f in formats:
+            require_module(module, f"--format {f}", f"pip install -e '.[{extra}]' (bash run.sh installs it)")
     if distractors_as not in ("class", "file"):
         raise UserInputError(f"--distractors-as must be 'class' or 'file', got {distractors_as!r}")
     from simulator.dataset.generate import export_inputs

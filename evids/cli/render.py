@@ -63,12 +63,16 @@ def render(
 
 @scenes_app.command("list")
 def scenes_list() -> None:
-    """Print the preset names with their one-line descriptions."""
+    """Print the preset names with their whole descriptions (wrapped, nothing cut)."""
+    import shutil
+    import textwrap
+
     from scenes.loader import load_scenario, preset_names
 
+    width = max(60, min(shutil.get_terminal_size((100, 24)).columns, 140))
     for name in preset_names():
-        description = load_scenario(name).description.strip().split(". ")[0]
-        typer.echo(f"{name:22s} {description}")
+        description = " ".join(load_scenario(name).description.split())
+        typer.echo(textwrap.fill(description, width, initial_indent=f"{name:22s} ", subsequent_indent=" " * 23))
 
 
 @scenes_app.command("show")

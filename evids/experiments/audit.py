@@ -28,7 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from evids.experiments.config import AuditConfig
 from evids.experiments.data import ClipArrays
+from evids.metrics.significance import A_BEATS_B, B_BEATS_A, NO_DIFFERENCE, UNDECIDED, comparison_verdict
 from scenes.errors import UserInputError
 
 FEATURES = ("video_median_colour", "video_strip_colour", "audio_mean_mfcc", "rf_mean_spectrum")
@@ -129,13 +131,18 @@ def _scene_ci(pred: np.ndarray, y: np.ndarray, scene: np.ndarray, rng: np.random
     return float(np.quantile(vals, a)), float(np.quantile(vals, 1 - a))
 
 
-def audit_clips(clips: list[ClipArrays], split: dict[str, list[int]], seed: int = 0, n_resamples: int = 1000,
-                confidence: float = 0.95, min_segments: int = 20, tolerance: float = 0.05) -> dict:
+def audit_clips(clips: list[ClipArrays], split: dict[str, list[int]], settings: AuditConfig | None = None,
+                confidence: float = 0.95) -> dict:
     """Fit every target-blind baseline on ``split['train']``, score on ``split['test']``.
 
-    Returns {"baselines": [...], "shortcut": bool, ...}; ``shortcut`` is True when any baseline's
-    CI lies above chance. ``within_tolerance``: |score - 0.5| <= ``tolerance`` as well.
+    ``settings`` (seed, resamples, minimum segments, tolerance) default to AuditConfig's, so
+    `evids audit` and a run's audit stage use the same seed. Each row's ``verdict`` follows the one
+    rule (evids.metrics.significance.comparison_verdict) with the tolerance as the MDE; ``shortcut``
+    is True when a decisive baseline beats chance by it. ``within_tolerance``: |score - 0.5| <= tolerance.
     """
+    settings = settings or AuditConfig()
+    seed, n_resamples = settings.seed, settings.n_resamples
+    min_segments, tolerance = settings.min_segments, settings.tolerance
     from sklearn.linear_model import LogisticRegression
     from sklearn.neighbors import KNeighborsClassifier
     from sklearn.pipeline import make_pipeline
@@ -170,15 +177,19 @@ def audit_clips(clips: list[ClipArrays], split: dict[str, list[int]], seed: int 
                 rng = np.random.default_rng(np.random.SeedSequence([seed, FEATURES.index(feature), len(model_name),
                                                                     variants.index(variant)]))
                 lo, hi = _scene_ci(pred, te.y, te.scene, rng, n_resamples, confidence)
-                beats = lo > 0.5
+                # the one verdict rule (evids.metrics.significance), the tolerance as the MDE
+                verdict = comparison_verdict(score - 0.5, lo - 0.5, hi - 0.5, tolerance)
+                beats = verdict == A_BEATS_B
                 decisive = cf or not has_twins
-                status = ("at chance" if not beats else "SHORTCUT: beats chance beyond its CI" if decisive else
-                          "drone signal in these features (the twin counterfactual decides)")
-                out.append({**row, "score": score, "ci_low": lo, "ci_high": hi, "beats_chance": bool(beats),
+                status = {NO_DIFFERENCE: "at chance", B_BEATS_A: "below chance",
+                          UNDECIDED: "undecided (the CI neither clears chance by the tolerance nor lies within it)",
+                          }.get(verdict, "SHORTCUT: beats chance beyond its CI" if decisive else
+                                "drone signal in these features (the twin counterfactual decides)")
+                out.append({**row, "score": score, "ci_low": lo, "ci_high": hi, "beats_chance": bool(beats), "verdict": verdict,
                             "decisive": decisive, "ci_includes_chance": bool(lo <= 0.5 <= hi),
                             "within_tolerance": bool(abs(score - 0.5) <= tolerance), "status": status})
     decisive_rows = [r for r in out if r.get("decisive") and r["score"] is not None]
-    return {"baselines": out, "chance": 0.5, "metric": "balanced accuracy", "confidence": confidence,
+    return {"baselines": out, "chance": 0.5, "metric": "balanced accuracy", "confidence": confidence, "seed": seed,
             "tolerance": tolerance, "twins": has_twins,
             "decided_by": "twin_counterfactual" if has_twins else "observed",
             "shortcut": any(r["beats_chance"] for r in decisive_rows),

@@ -197,6 +197,12 @@ class AuditConfig(_Model):
 
     enabled: bool = True
     min_segments: int = Field(default=20, ge=2, description="per class, for a baseline to be scored")
+    # one seed for every audit: the demo's/train's audit stage and `evids audit` (which uses these defaults)
+    seed: int = Field(default=42, ge=0, description="scene-bootstrap seed of every audit")
+    n_resamples: int = Field(default=1000, ge=100, le=100000)
+    tolerance: float = Field(default=0.05, gt=0.0, lt=0.5, description=(
+        "the audit's MDE in the verdict rule: 'at chance' only when the CI lies within 0.5 +- this, "
+        "'beats chance' only when the CI excludes 0.5 and |score - 0.5| >= this"))
 
 
 class ExperimentConfig(_Model):

@@ -51,7 +51,9 @@ from evids.experiments.pipeline import (
 from evids.gating import GateParams, HysteresisGate, sweep_gates
 from evids.metrics import paired_bootstrap, paired_permutation_test
 from evids.models.backbones import MODALITIES
+from evids.metrics.significance import UNDECIDED, comparison_verdict
 from evids.runfolder import mark_stage, write_csv, write_json
+from simulator.files import environment_record
 from scenes.errors import UserInputError
 from simulator.files import write_atomic
 
@@ -65,9 +67,9 @@ MODALITY_STREAMS = {"audio": ("audio",), "video": ("video",), "rf": ("rf_spec", 
 # ------------------------------------------------------------------------------------------
 
 def _versions() -> dict[str, str]:
-    from simulator.files import package_versions
+    from simulator.files import environment_record
 
-    return package_versions(("evids", "torch", "numpy", "scipy", "librosa", "mitsuba"))
+    return environment_record()["versions"]  # evids and every numeric dependency (run.json: commit, lock)
 
 
 # ------------------------------------------------------------------------------------------
@@ -238,6 +240,7 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
                   "segments": n_seg, "training_seeds": cfg.models.seeds, "noise_seeds": cfg.protocol.noise_seeds,
                   "hyper_parameters": cfg.models.model_dump(mode="json"), "training": record,
                   "data_seconds": round(data_s, 2), "versions": _versions(),
+                  "environment": {k: v for k, v in environment_record().items() if k != "versions"},
                   "torch_threads": torch.get_num_threads()}
     write_json(run_dir / "train.json", train_info)
     mark_stage(run_dir, "train", time.perf_counter() - t0, {"data_seconds": round(data_s, 2)})
@@ -290,7 +293,8 @@ COMPARISONS = (
 def compare(ctx: Context, name: str, correct_a: np.ndarray, correct_b: np.ndarray, clusters: np.ndarray) -> dict:
     """Paired accuracy comparison A - B on per-row correctness (averaged over training runs and
     noise seeds): scene-clustered sign-flip permutation p, MDE at 80 % power, clustered bootstrap CI,
-    and a verdict that says 'no difference' only when the MDE is below the effect of interest."""
+    and the verdict of evids.metrics.significance.comparison_verdict ("A beats B", "B beats A",
+    "no difference", "undecided")."""
     from evids.metrics import accuracy  # noqa: F401  (kept for API symmetry)
 
     bc = ctx.cfg.bootstrap
@@ -298,18 +302,15 @@ def compare(ctx: Context, name: str, correct_a: np.ndarray, correct_b: np.ndarra
     row = {"comparison": name, "n_segments": len(clusters), "n_clusters": n_cl, "cluster_unit": "scene"}
     if len(clusters) == 0 or n_cl < 2:
         return {**row, "delta_accuracy": None, "ci_low": None, "ci_high": None, "p_value": None,
-                "p_permutation": None, "mde": None, "verdict": "not enough clusters"}
+                "p_permutation": None, "mde": None, "verdict": UNDECIDED}
     rng = np.random.default_rng(np.random.SeedSequence([bc.seed, zlib.crc32(name.encode())]))
     perm = paired_permutation_test(correct_a, correct_b, clusters, rng, bc.n_permutations)
     y0 = np.zeros(len(clusters), np.int64)
     boot = paired_bootstrap(lambda a, yy: float(np.mean(a)), y0, correct_a, correct_b, clusters, rng,
                             n_resamples=bc.n_resamples, confidence=bc.confidence)
-    if perm.p_value <= 0.05:
-        verdict = "A better" if perm.estimate > 0 else "B better"
-    elif np.isfinite(perm.mde) and perm.mde < bc.effect_of_interest:
-        verdict = f"no difference (MDE {perm.mde * 100:.1f} pp < {bc.effect_of_interest * 100:.1f} pp)"
-    else:
-        verdict = f"cannot be decided at this size (MDE {perm.mde * 100:.1f} pp >= {bc.effect_of_interest * 100:.1f} pp)"
+    # the one verdict rule (docs/EXPERIMENTS.md): beats only when the CI excludes zero and |effect| >= MDE,
+    # no difference only when the CI lies inside +-MDE, else undecided
+    verdict = comparison_verdict(perm.estimate, boot.ci_low, boot.ci_high, perm.mde)
     return {**row, "delta_accuracy": perm.estimate, "ci_low": boot.ci_low, "ci_high": boot.ci_high,
             "p_value": perm.p_value, "p_bootstrap": boot.p_value, "p_permutation": perm.p_value,
             "permutation_exact": perm.exact, "n_permutations": perm.n_permutations, "mde": perm.mde,
@@ -711,8 +712,7 @@ def stage_audit(ctx: Context) -> dict:
     from evids.experiments.audit import audit_clips
 
     t0 = time.perf_counter()
-    res = audit_clips(ctx.prep.clips, ctx.prep.split, seed=ctx.cfg.bootstrap.seed,
-                      min_segments=ctx.cfg.audit.min_segments)
+    res = audit_clips(ctx.prep.clips, ctx.prep.split, ctx.cfg.audit)
     write_json(ctx.run_dir / "audit.json", res)
     mark_stage(ctx.run_dir, "audit", time.perf_counter() - t0)
     return res

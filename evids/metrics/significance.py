@@ -112,3 +112,45 @@ def null_rejection_rate(n_clusters: int, n_simulations: int, rng: np.random.Gene
         p, _, _ = sign_flip_p_value(d, rng, n_permutations)
         rejections += p <= alpha
     return rejections / n_simulations
+
+
+# ---- the one verdict rule for every comparison (docs/EXPERIMENTS.md, "Verdict rule") ----------
+
+A_BEATS_B, B_BEATS_A, NO_DIFFERENCE, UNDECIDED = "A beats B", "B beats A", "no difference", "undecided"
+
+
+def comparison_verdict(effect: float | None, ci_low: float | None, ci_high: float | None,
+                       mde: float | None) -> str:
+    """The verdict on a difference A - B with confidence interval [ci_low, ci_high] and minimum
+    detectable effect ``mde`` (all in the same unit):
+
+    - "A beats B" / "B beats A" only when the CI excludes zero and |effect| >= MDE;
+    - "no difference" only when the CI lies inside [-MDE, +MDE];
+    - "undecided" otherwise, and whenever a number is missing or not finite.
+    """
+    values = (effect, ci_low, ci_high, mde)
+    if any(v is None for v in values) or not all(np.isfinite(float(v)) for v in values):
+        return UNDECIDED
+    effect, ci_low, ci_high, mde = (float(v) for v in values)
+    if (ci_low > 0 or ci_high < 0) and abs(effect) >= mde:
+        return A_BEATS_B if effect > 0 else B_BEATS_A
+    if -mde <= ci_low and ci_high <= mde:
+        return NO_DIFFERENCE
+    return UNDECIDED
+
+
+def verdict_sentence(verdict: str, a: str, b: str) -> str:
+    """The verdict in words with the compared things named: "A beats B" -> "DS beats averaging"."""
+    return {A_BEATS_B: f"{a} beats {b}", B_BEATS_A: f"{b} beats {a}",
+            NO_DIFFERENCE: f"no difference between {a} and {b}"}.get(verdict, f"{a} vs {b}: undecided")
+
+
+def separating_digits(value: float, reference: float, digits: int = 3, most: int = 8) -> str:
+    """``value`` with at least ``digits`` decimals, more when fewer would print it equal to
+    ``reference`` although it is not (50.004 vs 50 prints "50.004", not "50.00"): printed numbers
+    then agree with the label computed from the unrounded ones."""
+    for d in range(digits, most + 1):
+        text = f"{value:.{d}f}"
+        if value == reference or float(text) != reference:
+            return text
+    return f"{value:.{most}f}"

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from evids.metrics.significance import comparison_verdict, separating_digits, verdict_sentence
+
 MODALITIES = ("audio", "video", "rf")
 
 
@@ -85,24 +87,19 @@ def _cond(ev: dict, key: str) -> dict | None:
 
 
 def _verdict(x: dict | None, a: str, b: str) -> str:
-    """The comparison's verdict from the scene-clustered permutation test and its MDE."""
+    """The comparison's verdict (the one rule: evids.metrics.significance.comparison_verdict on the
+    bootstrap CI and the permutation MDE), recomputed from the numbers so the label always agrees."""
     if not x or x.get("delta_accuracy") is None:
         return f"{a} vs {b}: no test available"
-    v = x.get("verdict", "")
-    if v == "A better":
-        return f"{a} beats {b}"
-    if v == "B better":
-        return f"{b} beats {a}"
-    if v.startswith("no difference"):
-        return f"no difference between {a} and {b} {html.escape(v[len('no difference '):])}"
-    return f"{a} vs {b}: {html.escape(v)}"
+    v = comparison_verdict(x["delta_accuracy"], x.get("ci_low"), x.get("ci_high"), x.get("mde"))
+    return html.escape(verdict_sentence(v, a, b))
 
 
 def _stat(x: dict | None) -> str:
     if not x or x.get("delta_accuracy") is None:
         return "(no test available)"
     return (f"&Delta; = {100 * x['delta_accuracy']:+.2f} pp, 95% CI [{100 * x['ci_low']:+.2f}, {100 * x['ci_high']:+.2f}] pp, "
-            f"permutation p = {x['p_permutation']:.3f}, MDE(80%) = {100 * x['mde']:.1f} pp, {x['n_clusters']} scenes")
+            f"permutation p = {x['p_permutation']:.3f}, MDE(80%) = {100 * x['mde']:.2f} pp, {x['n_clusters']} scenes")
 
 
 def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | None = None) -> list[str]:
@@ -117,9 +114,9 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | N
         out.append("<b>Shortcut audit:</b> " + (
             f"SHORTCUT: {', '.join(r['feature'] + '/' + r['model'] for r in bad)} beat chance beyond the CI, so "
             "every answer below may be learned from the scene, not the drone." if bad else
-            f"all {len(scored)} target-blind baselines are at chance (largest deviation: {worst['feature']}/"
-            f"{worst['model']} {100 * worst['score']:.1f}% balanced accuracy, CI [{100 * worst['ci_low']:.1f}, "
-            f"{100 * worst['ci_high']:.1f}]%)." if worst else "no baseline could be scored."))
+            f"none of {len(scored)} target-blind baselines beats chance (largest deviation: {worst['feature']}/"
+            f"{worst['model']} {100 * worst['score']:.1f}% balanced accuracy, CI [{_pct_vs_chance(worst['ci_low'])}, "
+            f"{_pct_vs_chance(worst['ci_high'])}]%)." if worst else "no baseline could be scored."))
     if b and d:
         name = "EDL + average (d) vs Late Fusion (b)"
         out.append(f"<b>EDL + average vs sigmoid Late Fusion (fitted on noisy validation outputs):</b> "
@@ -182,13 +179,19 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | N
     return out
 
 
+def _pct_vs_chance(v: float | None) -> str:
+    """A CI bound in % with enough digits to show which side of 50 % it lies (50.004, not 50.00)."""
+    return "&ndash;" if v is None else separating_digits(100 * v, 50.0, digits=2)
+
+
 def _audit_html(audit: dict) -> str:
     rows = [[r.get("variant", "observed"), r["feature"], r["model"], f"{r['n_train'][0]}/{r['n_train'][1]}", f"{r['n_test'][0]}/{r['n_test'][1]}",
-             _fmt(r.get("n_test_scenes")), _fmt(r.get("score"), pct=True), _fmt(r.get("ci_low"), pct=True),
-             _fmt(r.get("ci_high"), pct=True), html.escape(r["status"])] for r in audit["baselines"]]
+             _fmt(r.get("n_test_scenes")), _fmt(r.get("score"), pct=True), _pct_vs_chance(r.get("ci_low")),
+             _pct_vs_chance(r.get("ci_high")), html.escape(r["status"])] for r in audit["baselines"]]
     verdict = ("<b style='color:#b00'>SHORTCUT FOUND</b>: a target-blind baseline beats chance; the class is "
                "readable without the target." if audit["shortcut"] else
-               "<b>No shortcut found</b>: every target-blind baseline is at chance (its CI includes 50%).")
+               "<b>No shortcut found</b>: no target-blind baseline beats chance by the rule below (CI excluding 50% "
+               f"and at least {100 * audit.get('tolerance', 0.05):.0f} pp from it).")
     return ("<h2>Shortcut audit (target-blind baselines)</h2><p>" + verdict + "</p><p class='note'>Fitted on train, "
             "scored on test; balanced accuracy (chance 50%), 95% CI by resampling test scenes. Features describe the "
             "scene, not the drone: median frame colour, colour of the target-free top/bottom strips, mean MFCC and "
@@ -234,7 +237,9 @@ def _comparisons_html(comps: list[dict]) -> str:
              _fmt(None if b.get("ci_low") is None else 100 * b["ci_low"]),
              _fmt(None if b.get("ci_high") is None else 100 * b["ci_high"]),
              _fmt(b.get("p_permutation")), _fmt(b.get("p_bootstrap")),
-             _fmt(None if b.get("mde") is None else 100 * b["mde"]), html.escape(b.get("verdict", ""))] for b in comps]
+             _fmt(None if b.get("mde") is None else 100 * b["mde"]),
+             html.escape(comparison_verdict(b.get("delta_accuracy"), b.get("ci_low"), b.get("ci_high"), b.get("mde")))]
+            for b in comps]
     return ("<h2>Paired comparisons</h2><p class='note'>Per-segment correctness averaged over training runs and noise "
             "seeds, then per scene (the cluster unit: a drone clip and its twin share one). p: two-sided sign-flip "
             "permutation test over scenes (calibrated at this cluster count; see the null-simulation test); CI: "

@@ -188,7 +188,7 @@ def load_trident_config(config_or_name: str | Path | dict | TridentConfig) -> Tr
 
     if isinstance(config_or_name, TridentConfig):
         return config_or_name
-    return load_validated(config_or_name, TridentConfig, GENERATION_DIR, "trident generation preset")
+    return load_validated(config_or_name, TridentConfig, GENERATION_DIR, "trident generation config")
 
 
 def resolve_scenario(spec: ClipSpec, source: str = "<clip>") -> Scenario:

@@ -569,8 +569,15 @@ def iter_trident(root: str | Path) -> Iterator[TridentSegment]:
 
 def assign_splits(clips: list[ClipFiles], test_fraction: float) -> dict[str, str]:
     """Clip id -> "Train"/"Test": per label, in clip order, clip j is Test when
-    floor((j + 1) f + 1/2) > floor(j f + 1/2), so round(n f) of a label's n clips, evenly spread."""
+    floor((j + 1) f + 1/2) > floor(j f + 1/2), so round(n f) of a label's n clips, evenly spread.
+
+    With f > 0 every split holds every label (the public loader opens Train/<label> and Test/<label>
+    and raises FileNotFoundError on a missing one): a label the rule left without Test clips gets
+    its last clip in Test, one left without Train clips its first in Train; a label with a single
+    clip cannot be in both, which is refused (UserInputError naming the label and the fraction)."""
     import math
+
+    from scenes.errors import UserInputError
 
     if not 0.0 <= test_fraction < 1.0:
         raise ValueError(f"test_fraction must be in [0, 1), got {test_fraction}")
@@ -580,6 +587,16 @@ def assign_splits(clips: list[ClipFiles], test_fraction: float) -> dict[str, str
         for j, c in enumerate(mine):
             test = math.floor((j + 1) * test_fraction + 0.5) > math.floor(j * test_fraction + 0.5)
             out[c.clip_id] = "Test" if test else "Train"
+        if test_fraction == 0.0 or not mine:
+            continue
+        if len(mine) < 2:
+            raise UserInputError(f"--test-fraction {test_fraction}: label {label!r} has {len(mine)} clip, so Train and "
+                                 "Test cannot both hold it (the TRIDENT loader needs every label in every split); "
+                                 "generate more clips or export with --test-fraction 0")
+        if all(out[c.clip_id] == "Train" for c in mine):
+            out[mine[-1].clip_id] = "Test"
+        if all(out[c.clip_id] == "Test" for c in mine):
+            out[mine[0].clip_id] = "Train"
     return out
 
 

@@ -25,6 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
+# NumPy >= 2.0 names it trapezoid, 1.24-1.26 (allowed by pyproject) trapz: the same rule
+_trapezoid = getattr(np, "trapezoid", None) or np.trapz
+
 H = 6.62607015e-34
 C = 2.99792458e8
 KB = 1.380649e-23
@@ -70,13 +73,13 @@ def band_radiance(wl_nm: np.ndarray, radiance_um_cm2: np.ndarray) -> float:
     """Band integral of a lowtran spectrum (per um per cm^2) in W m^-2 sr^-1."""
     per_wavenumber = np.asarray(radiance_um_cm2, float) * (np.asarray(wl_nm, float) * 1e-3) ** 2 / 1e4
     grid, val = _clipped(wl_nm, per_wavenumber)
-    return float(np.trapezoid(val, grid) * 1e4)
+    return float(_trapezoid(val, grid) * 1e4)
 
 
 def band_mean(wl_nm: np.ndarray, y: np.ndarray, weight: np.ndarray | None = None) -> float:
     grid, yi = _clipped(wl_nm, y)
     wi = np.ones_like(yi) if weight is None else _clipped(wl_nm, weight)[1]
-    return float(np.trapezoid(yi * wi, grid) / np.trapezoid(wi, grid))
+    return float(_trapezoid(yi * wi, grid) / _trapezoid(wi, grid))
 
 
 def _base(**kw) -> dict:

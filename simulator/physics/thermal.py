@@ -10,6 +10,9 @@ from functools import lru_cache
 
 import numpy as np
 
+# NumPy >= 2.0 names it trapezoid, 1.24-1.26 (allowed by pyproject) trapz: the same rule
+_trapezoid = getattr(np, "trapezoid", None) or np.trapz
+
 BAND_LOW_M = 8e-6
 BAND_HIGH_M = 14e-6
 _TABLE_T_MIN_K = 100.0
@@ -26,7 +29,7 @@ def _planck_band(temperatures_k: np.ndarray, n_wavelengths: int = 601) -> np.nda
     for start in range(0, temps.size, 2048):
         block = temps[start:start + 2048]
         spectral = np.asarray(colour.colorimetry.planck_law(wavelengths_m[:, None], block[None, :]))
-        out[start:start + 2048] = np.trapezoid(spectral.reshape(n_wavelengths, block.size), wavelengths_m, axis=0)
+        out[start:start + 2048] = _trapezoid(spectral.reshape(n_wavelengths, block.size), wavelengths_m, axis=0)
     return out
 
 

@@ -34,6 +34,7 @@ from simulator.physics.sky import (
 )
 from simulator.physics.timeline import Timeline
 from simulator.render.geometry import TrackGeometry
+from simulator.render import scalar
 from simulator.render.plan import (
     BATCH_FRAMES,
     COVERAGE_SUBSAMPLES,
@@ -145,19 +146,26 @@ class SkyMaps:
                   "albedo": scenario.sky.ground_albedo}
         sky_only = mi.load_dict({**sunsky, "sun_scale": 0.0})
         wi = _neg_directions_f32(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())
-        si = dr.zeros(mi.SurfaceInteraction3f, wi.shape[1])
-        si.wi = mi.Vector3f(wi[0], wi[1], wi[2])
-        rgb = np.array(sky_only.eval(si), dtype=np.float32).T.reshape(half, ENV_WIDTH, 3)
-        # both helper emitters are always created (and freed) in the same order, so the scene's
-        # own emitters get the same Dr.Jit registry ids in every sequence and the compiled
-        # kernels are reused instead of rebuilt per sequence
-        sun_only = mi.load_dict({**sunsky, "sky_scale": 0.0})
-        si1 = dr.zeros(mi.SurfaceInteraction3f, 1)
-        si1.wi = mi.Vector3f(*[float(c) for c in -self.sun_direction])
-        sun_value = np.array(sun_only.eval(si1)).ravel() * SUN_SOLID_ANGLE_SR
+        sun_wi = -self.sun_direction
+        if is_scalar(mi):  # one direction per call (simulator.render.scalar)
+            rgb = scalar.eval_emitter(mi, sky_only, wi).reshape(half, ENV_WIDTH, 3)
+            sun_only = mi.load_dict({**sunsky, "sky_scale": 0.0})
+            sun_value = scalar.eval_emitter(mi, sun_only, sun_wi[:, None]).astype(np.float64).ravel() * SUN_SOLID_ANGLE_SR
+        else:
+            si = dr.zeros(mi.SurfaceInteraction3f, wi.shape[1])
+            si.wi = mi.Vector3f(wi[0], wi[1], wi[2])
+            rgb = np.array(sky_only.eval(si), dtype=np.float32).T.reshape(half, ENV_WIDTH, 3)
+            # both helper emitters are always created (and freed) in the same order, so the scene's
+            # own emitters get the same Dr.Jit registry ids in every sequence and the compiled
+            # kernels are reused instead of rebuilt per sequence
+            sun_only = mi.load_dict({**sunsky, "sky_scale": 0.0})
+            si1 = dr.zeros(mi.SurfaceInteraction3f, 1)
+            si1.wi = mi.Vector3f(*[float(c) for c in sun_wi])
+            sun_value = np.array(sun_only.eval(si1)).ravel() * SUN_SOLID_ANGLE_SR
+            del si, si1
         self.sun_irradiance = sun_value if sun_el > 0 else np.zeros(3)
         self.sun_elevation_deg = float(sun_el)
-        del sky_only, sun_only, si, si1
+        del sky_only, sun_only
         # texel solid angle depends on the row only: (2 pi / W)(pi / H) sin(theta_row)
         row_sa = (2 * np.pi / ENV_WIDTH) * (np.pi / ENV_HEIGHT) * np.sin((np.arange(half) + 0.5) / ENV_HEIGHT * np.pi)
         weight = (up * row_sa[:, None]).ravel()
@@ -204,6 +212,10 @@ class SkyMaps:
 def _color(mi, values) -> object:
     return mi.Color3f(*[float(v) for v in values])
 
+
+def is_scalar(mi) -> bool:
+    """True on Mitsuba's scalar variants (one ray per call; see simulator.render.scalar)."""
+    return mi.variant().startswith("scalar")
 
 
 class _View:
@@ -295,8 +307,8 @@ class _View:
         mesh.add_attribute(f"{self.attr}_albedo", 3, [0.5] * (3 * n_attr))
         mesh.add_attribute(f"{self.attr}_emission", 3, [0.0] * (3 * n_attr))
         params = mi.traverse(mesh)
-        params["vertex_positions"] = mi.Float(self._vertices([0] * self.plan.batch_frames).ravel())
-        params["faces"] = mi.UInt32(self.faces.ravel())
+        params["vertex_positions"] = self._floats(self._vertices([0] * self.plan.batch_frames).ravel())
+        params["faces"] = self._uints(self.faces.ravel())
         params.update()
         scene["targets"] = mesh
         return mi.load_dict(scene)
@@ -305,6 +317,13 @@ class _View:
     def attr(self) -> str:
         """Mesh attributes are per face (targets only) or per vertex (with terrain: smooth texture)."""
         return "face" if self.terrain is None else "vertex"
+
+    def _floats(self, values: np.ndarray):
+        """A mesh buffer (Dr.Jit Float array) from numpy."""
+        return self.mi.Float(values)
+
+    def _uints(self, values: np.ndarray):
+        return self.mi.UInt32(values)
 
     def _vertices(self, slot_frames: list[int]) -> np.ndarray:
         """(n_vertices, 3) float32: each slot's frame geometry relative to its camera, at the slot."""
@@ -324,7 +343,7 @@ class _View:
     # ---- per batch ----------------------------------------------------------------------------
     def place(self, slot_frames: list[int]) -> dict[tuple[int, int], Tile]:
         """Put frame ``slot_frames[s]`` into slot ``s``: geometry and per-face materials; returns tiles."""
-        mi, plan, cam, owner = self.mi, self.plan, self.camera, self.owner
+        plan, cam, owner = self.plan, self.camera, self.owner
         tiles: dict[tuple[int, int], Tile] = {}
         for slot, frame in enumerate(slot_frames):
             for ti in range(plan.tiles_per_frame):
@@ -349,6 +368,11 @@ class _View:
             self.params["targets.vertex_albedo"] = mi.Float(self._per_vertex(albedo, None).ravel())
             seen = owner.terrain_seen[self.which][1]
             self.params["targets.vertex_emission"] = mi.Float(self._per_vertex(emission, owner.terrain_emission(self.which)[seen]).ravel())
+
+        self.params["targets.vertex_positions"] = self._floats(self._vertices(slot_frames).ravel())
+        pin = np.zeros((1, 3), np.float32)  # the bounding face's attributes (never hit)
+        self.params["targets.face_albedo"] = self._floats(np.vstack([np.repeat(albedo, self.face_counts, axis=0), pin]).ravel())
+        self.params["targets.face_emission"] = self._floats(np.vstack([np.repeat(emission, self.face_counts, axis=0), pin]).ravel())
         self.params.update()
         self._slot_frames = list(slot_frames)
         return tiles
@@ -440,7 +464,7 @@ class _View:
         for label contrast), cached while the camera does not turn. Pixels smaller than a sky
         texel make this the pixel's mean to well below the 8-bit step (tested against a full render).
         Only a static camera's sky is cached (a turning camera's is composited over in place)."""
-        dr, mi, cam = self.dr, self.mi, self.camera
+        cam = self.camera
         pose = (cam.forward[frame].tobytes(), cam.up[frame].tobytes())
         if self._sky_cache is not None and self._sky_cache[0] == pose:
             whole = self._sky_cache[1]
@@ -454,6 +478,15 @@ class _View:
             if region is None and self.static:
                 self._sky_cache = (pose, image)
             return image
+
+        image = self._sky_pixels(frame, x0, y0, y1 - y0, x1 - x0)
+        if region is None and self.static:
+            self._sky_cache = (pose, image)
+        return image
+
+    def _sky_pixels(self, frame: int, x0: int, y0: int, h: int, w: int) -> np.ndarray:
+        """(h, w, 3) environment radiance at the centres of pixels [y0:y0+h, x0:x0+w]."""
+        dr, mi = self.dr, self.mi
         idx = dr.arange(mi.UInt32, h * w)
         wo = self._opaque(mi.UInt32, w)
         x = mi.Float(idx % wo + self._opaque(mi.UInt32, x0)) + 0.5
@@ -463,10 +496,7 @@ class _View:
         ray = self._rays(dr.zeros(mi.UInt32, h * w), x, y, self._camera_arrays([frame]))
         si = dr.zeros(mi.SurfaceInteraction3f, h * w)
         si.wi = -ray.d
-        image = np.array(self.environment.eval(si), dtype=np.float32).T.reshape(h, w, 3)
-        if region is None and self.static:
-            self._sky_cache = (pose, image)
-        return image
+        return np.array(self.environment.eval(si), dtype=np.float32).T.reshape(h, w, 3)
 
     def _terrain_background(self, frame: int, x0: int, y0: int, w: int, h: int) -> np.ndarray:
         """(h, w, 3) background (sky and terrain, no targets): one ray per pixel centre from the
@@ -492,7 +522,7 @@ class _View:
     def coverage(self, slot_frames: list[int], tiles: dict[tuple[int, int], Tile], wanted: set[int]) -> dict:
         """Coverage rays (regular k x k grid per pixel) over each target's projected box in each
         wanted slot: {(slot, target): (region, (h, w, n_keys) hit counts)}."""
-        mi, cam = self.mi, self.camera
+        cam = self.camera
         k = COVERAGE_SUBSAMPLES
         sub = (np.arange(k) + 0.5) / k
         xs_all, ys_all, slots_all, regions = [], [], [], []
@@ -514,11 +544,8 @@ class _View:
                 regions.append(((slot, ti), region))
         if not regions:
             return {}
-        ray = self._rays(mi.UInt32(np.concatenate(slots_all)), mi.Float(np.concatenate(xs_all).astype(np.float32)),
-                         mi.Float(np.concatenate(ys_all).astype(np.float32)), self._camera_arrays(slot_frames))
-        si = self.scene.ray_intersect(ray)
-        prim = np.array(si.prim_index, dtype=np.int64)
-        valid = np.array(si.is_valid(), dtype=bool)
+        prim, valid = self._hits(np.concatenate(slots_all), np.concatenate(xs_all).astype(np.float32),
+                                 np.concatenate(ys_all).astype(np.float32), slot_frames)
         n_keys = len(self.keys)
         key = np.where(valid, self.face_key[np.clip(prim, 0, len(self.face_key) - 1)], n_keys)
         out, start = {}, 0
@@ -531,6 +558,86 @@ class _View:
             np.add.at(counts, (np.repeat(np.arange(hits.shape[0]), k * k), hits.ravel()), 1)
             out[slot_ti] = (region, counts[:, :n_keys].reshape(y1 - y0, x1 - x0, n_keys))
         return out
+
+    def _hits(self, slots: np.ndarray, xs: np.ndarray, ys: np.ndarray, slot_frames: list[int]) -> tuple:
+        """(primitive index, hit) of the rays of slots ``slots`` through image positions (xs, ys)."""
+        mi = self.mi
+        ray = self._rays(mi.UInt32(slots), mi.Float(xs), mi.Float(ys), self._camera_arrays(slot_frames))
+        si = self.scene.ray_intersect(ray)
+        return np.array(si.prim_index, dtype=np.int64), np.array(si.is_valid(), dtype=bool)
+
+
+class _ScalarView(_View):
+    """A camera view on Mitsuba's scalar variant: the same lanes (tiles, samples, jitter hash,
+    pinhole rays) computed with numpy in float32, each ray traced by one scalar Mitsuba call
+    (simulator.render.scalar). Sky, coverage and thermal emission equal the llvm variant's to float
+    rounding; path-traced RGB differs by Monte Carlo noise only (another sampler stream)."""
+
+    def _floats(self, values: np.ndarray):
+        return self.dr.scalar.ArrayXf(np.ascontiguousarray(values, np.float32))
+
+    def _uints(self, values: np.ndarray):
+        return self.dr.scalar.ArrayXu(np.ascontiguousarray(values, np.uint32))
+
+    def _camera_arrays(self, slot_frames: list[int]) -> np.ndarray:
+        """(slots, 12) float32 per-slot camera origin, forward, right and up."""
+        cam, plan = self.camera, self.plan
+        rows = [np.concatenate([plan.slot_offset_m(s), cam.forward[f], np.cross(cam.forward[f], cam.up[f]), cam.up[f]])
+                for s, f in enumerate(slot_frames)]
+        return np.asarray(rows, np.float64).astype(np.float32)
+
+    def _rays(self, slot, px, py, cams) -> tuple[np.ndarray, np.ndarray]:
+        """(origins, unit directions), each (n, 3) float32, as the llvm variant's ``_rays``."""
+        cam = self.camera
+        g = cams[np.asarray(slot, np.int64)]
+        f = np.float32(cam.focal_px)
+        cx, cy = np.float32(cam.width_px / 2), np.float32(cam.height_px / 2)
+        dx = (np.asarray(px, np.float32) - cx)[:, None]
+        dy = (np.asarray(py, np.float32) - cy)[:, None]
+        d = g[:, 3:6] * f + g[:, 6:9] * dx - g[:, 9:12] * dy
+        d = d / np.sqrt(np.sum(d * d, axis=1, keepdims=True, dtype=np.float32))
+        return g[:, 0:3], d.astype(np.float32)
+
+    def _tile_lanes(self, tiles: dict, n_tiles: int):
+        plan = self.plan
+        idx = np.arange(n_tiles * plan.tile_height * plan.tile_width * self.spp, dtype=np.uint32)
+        s, pix = idx % self.spp, idx // self.spp
+        u, v, t = pix % plan.tile_width, (pix // plan.tile_width) % plan.tile_height, pix // (plan.tile_width * plan.tile_height)
+        order = sorted(tiles)
+        x = np.array([tiles[k].x0 for k in order], np.uint32)[t] + u
+        y = np.array([tiles[k].y0 for k in order], np.uint32)[t] + v
+        return t // np.uint32(plan.tiles_per_frame), x, y, s
+
+    def _jitter(self, x, y, s):
+        with np.errstate(over="ignore"):
+            pid = y * np.uint32(self.camera.width_px) + x
+            key = np.uint32(self.jitter_seed) + s * np.uint32(2)
+            return scalar.tea_float32(pid, key), scalar.tea_float32(pid, key + np.uint32(1))
+
+    def render_tiles(self, seed: int, tiles: dict) -> np.ndarray:
+        plan = self.plan
+        n_tiles = plan.tiles_per_batch
+        slot, x, y, s = self._tile_lanes(tiles, n_tiles)
+        jx, jy = self._jitter(x, y, s)
+        o, d = self._rays(slot, x.astype(np.float32) + jx, y.astype(np.float32) + jy, self._camera_arrays(self._slot_frames))
+        far = float(np.float32(plan.far_clip_m))
+        if self.integrator is not None:
+            value = scalar.path_trace(self.mi, self.scene, self.integrator, seed, o, d, far)
+        else:
+            value = scalar.emitted(self.mi, self.scene, o, d, far)
+        img = value.reshape(-1, self.spp, 3).sum(axis=1, dtype=np.float32) / np.float32(self.spp)
+        return img.reshape(n_tiles, plan.tile_height, plan.tile_width, 3)
+
+    def _sky_pixels(self, frame: int, x0: int, y0: int, h: int, w: int) -> np.ndarray:
+        idx = np.arange(h * w)
+        x = (idx % w + x0).astype(np.float32) + np.float32(0.5)
+        y = (idx // w + y0).astype(np.float32) + np.float32(0.5)
+        _, d = self._rays(np.zeros(h * w, np.int64), x, y, self._camera_arrays([frame]))
+        return scalar.eval_emitter(self.mi, self.environment, -d.T).reshape(h, w, 3)
+
+    def _hits(self, slots: np.ndarray, xs: np.ndarray, ys: np.ndarray, slot_frames: list[int]) -> tuple:
+        o, d = self._rays(slots, xs, ys, self._camera_arrays(slot_frames))
+        return scalar.intersect(self.mi, self.scene, o, d, float(np.float32(self.plan.far_clip_m)))
 
 
 def _layout_geometry(timeline: Timeline, layout: Timeline, cameras: tuple[str, ...]) -> list[TrackGeometry]:
@@ -631,7 +738,8 @@ class SequenceRenderer:
             b = min(p.batch_frames for p in self.plans.values())
             self.plans = {w: CameraPlan(**{**p.__dict__, "batch_frames": b}) for w, p in self.plans.items()}
         self.batch_frames = min(p.batch_frames for p in self.plans.values())
-        self.views = {which: _View(self, which, self.plans[which]) for which in cameras}
+        view_class = _ScalarView if is_scalar(mi) else _View
+        self.views = {which: view_class(self, which, self.plans[which]) for which in cameras}
         look = timeline.cameras["rgb"].forward[0]
         luminance = float(np.dot(self.sky.rgb_at(look), [0.2126, 0.7152, 0.0722]))
         self.exposure = EXPOSURE_KEY / max(luminance, 1e-6)

@@ -70,3 +70,39 @@ def test_temperature_at_a_bound_is_flagged():
     y2 = (rng.random(400) < 1 / (1 + np.exp(-z2))).astype(int)
     t2, flag2 = fit_temperature_flagged(z2, y2, 0.05, 20.0)
     assert flag2 is None and 0.6 < t2 < 1.6
+
+
+# ---- the one verdict rule (known answers) ----------------------------------------------------
+
+from evids.metrics.significance import comparison_verdict, separating_digits, verdict_sentence  # noqa: E402
+
+
+@pytest.mark.parametrize("effect, lo, hi, mde, expected", [
+    (0.05, 0.02, 0.08, 0.04, "A beats B"),         # CI excludes 0, |effect| >= MDE
+    (-0.05, -0.08, -0.02, 0.04, "B beats A"),
+    (0.044, 0.005, 0.083, 0.060, "undecided"),      # the EDL+average vs Late Fusion: +4.4 < MDE 6.0
+    (0.014, 0.0003, 0.0273, 0.02, "undecided"),     # the DS vs average, all noisy: CI excludes 0, not inside +-MDE
+    (0.014, 0.0003, 0.0273, 0.03, "no difference"),  # the same CI inside +-3 pp: practically equivalent
+    (0.01, -0.01, 0.03, 0.05, "no difference"),     # CI covers 0 and lies inside +-MDE
+    (0.01, -0.06, 0.08, 0.05, "undecided"),         # CI covers 0 but reaches past the MDE
+    (0.04, 0.01, 0.07, 0.04, "A beats B"),          # |effect| == MDE counts
+    (0.0, -0.05, 0.05, 0.05, "no difference"),      # CI exactly on +-MDE counts as inside
+    (None, 0.0, 0.1, 0.05, "undecided"),
+    (0.05, 0.02, 0.08, float("nan"), "undecided"),
+])
+def test_comparison_verdict_known_answers(effect, lo, hi, mde, expected):
+    assert comparison_verdict(effect, lo, hi, mde) == expected
+
+
+def test_verdict_sentence_names_the_winner():
+    assert verdict_sentence("A beats B", "DS", "averaging") == "DS beats averaging"
+    assert verdict_sentence("B beats A", "DS", "averaging") == "averaging beats DS"
+    assert verdict_sentence("no difference", "DS", "averaging") == "no difference between DS and averaging"
+    assert verdict_sentence("undecided", "DS", "averaging") == "DS vs averaging: undecided"
+
+
+def test_separating_digits_prints_what_the_label_saw():
+    assert separating_digits(50.004, 50.0, digits=2) == "50.004"   # the "50.00" drone-signal row
+    assert separating_digits(50.0, 50.0, digits=2) == "50.00"
+    assert separating_digits(0.4999, 0.5) == "0.4999"
+    assert separating_digits(0.61234, 0.5) == "0.612"

@@ -10,6 +10,7 @@ truth and our result files), ``metrics.json``, ``tables/*.csv``, ``run.json`` (s
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -539,6 +540,10 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
     from simulator.formats.antiuav import export_antiuav
 
     exports = run_dir / "exports"
+    if exports.is_dir() and not exports.is_symlink():
+        # this stage's own output inside the run folder (checked above: config.json/data.json), rebuilt in
+        # full below: a rerun after an interrupted evaluate replaces its partial export instead of refusing it
+        shutil.rmtree(exports)
     test_sets: dict[str, list[dict]] = {}
     for k, (name, path) in enumerate(sorted(data["test"].items())):
         ents = [e for e in dataset_entries(Path(path), ("test",), f"data.test.{name}") if e["split"] == "test"]
@@ -859,15 +864,14 @@ def time_gating(seqs: list[SequenceData], models, cfg: DetectionConfig, gate: di
 
 
 def _verdict(c: dict | None, better: str, worse: str, unit: float = 100.0, what: str = "pp") -> str:
+    """The numbers and the verdict of the one rule (evids.metrics.significance.comparison_verdict)."""
+    from evids.metrics.significance import comparison_verdict, verdict_sentence
+
     if c is None or not np.isfinite(c.get("diff", np.nan)):
         return "not measured"
-    txt = (f"{better} - {worse} = {c['diff'] * unit:+.1f} {what} (sequence-bootstrap 95% CI [{c['ci_low'] * unit:+.1f}, "
-           f"{c['ci_high'] * unit:+.1f}], sign-flip p = {c['p']:.3f}, n = {c['n']} sequences, MDE {c['mde'] * unit:.1f} {what})")
-    if c["ci_low"] > 0 and c["p"] < 0.05:
-        return txt + f": {better} is better."
-    if c["ci_high"] < 0 and c["p"] < 0.05:
-        return txt + f": {better} is worse."
-    return txt + ": cannot be decided at this size."
+    txt = (f"{better} - {worse} = {c['diff'] * unit:+.2f} {what} (sequence-bootstrap 95% CI [{c['ci_low'] * unit:+.2f}, "
+           f"{c['ci_high'] * unit:+.2f}], sign-flip p = {c['p']:.3f}, n = {c['n']} sequences, MDE {c['mde'] * unit:.2f} {what})")
+    return txt + ": " + verdict_sentence(comparison_verdict(c["diff"], c["ci_low"], c["ci_high"], c["mde"]), better, worse) + "."
 
 
 def _comp(summary, set_name, a, b, metric="state_acc"):
@@ -891,7 +895,7 @@ def _uauc_txt(u) -> str:
 
 
 def headline(summary: dict[str, Any], cfg: DetectionConfig) -> dict[str, str]:
-    """The four headline questions, answered from the numbers (or 'cannot be decided at this size')."""
+    """The four headline questions, answered from the numbers by the one verdict rule (or 'undecided')."""
     xs = cfg.crossover_set
     out = {}
     q1 = [_verdict(_comp(summary, xs, "e_ds/fused", "d_average/fused"), "DS", "average"),

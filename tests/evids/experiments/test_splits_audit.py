@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from evids.experiments.audit import audit_clips, dataset_split
-from evids.experiments.config import SplitConfig
+from evids.experiments.config import AuditConfig, SplitConfig
 from evids.experiments.data import check_scene_disjoint, split_clips
 from scenes.errors import UserInputError
 from tests.evids.experiments.fixtures import make_clips
@@ -45,7 +45,7 @@ def test_too_few_scenes_for_disjoint_splits_names_the_field():
 
 def test_audit_passes_a_balanced_twin_fixture():
     clips = make_clips(40, seed=4, splits=(24, 0, 16))
-    res = audit_clips(clips, dataset_split(clips), seed=0, n_resamples=300, min_segments=4)
+    res = audit_clips(clips, dataset_split(clips), AuditConfig(seed=0, n_resamples=300, min_segments=4))
     video = [r for r in res["baselines"] if r["feature"].startswith("video")]
     assert video and all(r["score"] is not None for r in video)
     assert not res["shortcut"], [(r["feature"], r["model"], r["score"], r["ci_low"]) for r in res["baselines"]]
@@ -55,7 +55,7 @@ def test_audit_passes_a_balanced_twin_fixture():
 
 def test_audit_flags_a_confounded_fixture():
     clips = make_clips(60, seed=5, confounded=True, twins=False, splits=(36, 0, 24))
-    res = audit_clips(clips, dataset_split(clips), seed=0, n_resamples=300, min_segments=4)
+    res = audit_clips(clips, dataset_split(clips), AuditConfig(seed=0, n_resamples=300, min_segments=4))
     colour = [r for r in res["baselines"] if r["feature"] == "video_median_colour"]
     assert res["shortcut"] and all(r["beats_chance"] for r in colour), colour
     assert all(r["score"] > 0.65 for r in colour)
