@@ -54,6 +54,7 @@ from evids.models.backbones import MODALITIES
 from evids.runfolder import mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
 from simulator.files import write_atomic
+from simulator.jobs import job_context
 
 VARIANTS = ("clean", "standard", "all_spec", "iq")
 NOISE_STREAMS = ("audio", "video", "rf_spec", "rf_iq")
@@ -218,12 +219,8 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
     trained = train_unimodal(cfg, prep, list(cfg.models.seeds), progress)
     # stage 2 (fusion heads, temperatures) of every training seed as forked jobs (identical results
     # for any worker count: each depends only on its own seed's models and the shared inputs)
-    _FORKED_CTX["train"] = (cfg, prep, val_noisy, trained)
-    try:
-        done = dict(forked_map(_fusion_job, [(k,) for k in range(len(trained))], cfg.models.train_workers,
-                               "fitting fusion heads" if progress else None))
-    finally:
-        _FORKED_CTX.clear()
+    done = dict(forked_map(_fusion_job, [(k,) for k in range(len(trained))], cfg.models.train_workers,
+                           "fitting fusion heads" if progress else None, context=(cfg, prep, val_noisy, trained)))
     models = [done[k][0] for k in range(len(trained))]
     records = [done[k][1] for k in range(len(trained))]
     record = {"runs": records}
@@ -246,7 +243,7 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
 
 def _fusion_job(k: int) -> tuple:
     """train_all's stage 2 for the k-th training seed (in a worker)."""
-    cfg, prep, val_noisy, trained = _FORKED_CTX["train"]
+    cfg, prep, val_noisy, trained = job_context()
     torch.set_num_threads(cfg.models.torch_threads)
     return train_all(cfg, prep, False, cfg.models.seeds[k], val_noisy, trained=trained[k])
 
@@ -421,12 +418,9 @@ def stage_evaluate(ctx: Context) -> dict:
     return result
 
 
-_FORKED_CTX: dict = {}  # the context a forked evaluation worker inherits (never pickled)
-
-
 def _evaluate_group(group: tuple, extra: tuple) -> tuple[tuple, list]:
     """Every condition of the group's variants under its noise seeds and every training run (in a worker)."""
-    ctx = _FORKED_CTX["ctx"]
+    ctx = job_context()
     conds, y, cid, gate = extra
     cfg = ctx.cfg
     variants, seeds = group
@@ -453,13 +447,9 @@ def _map_groups(ctx: Context, groups: list, extra: tuple, label: str, job=None):
     """(group, result) of ``job(group, extra)`` (default _evaluate_group) for every group, through
     pipeline.forked_map on ``models.train_workers`` processes (each on models.torch_threads
     threads, inheriting the context; results do not depend on the count)."""
-    _FORKED_CTX["ctx"] = ctx
-    try:
-        for _, result in forked_map(job or _evaluate_group, [(g, extra) for g in groups], ctx.cfg.models.train_workers,
-                                    label if ctx.progress else None):
-            yield result
-    finally:
-        _FORKED_CTX.clear()
+    for _, result in forked_map(job or _evaluate_group, [(g, extra) for g in groups], ctx.cfg.models.train_workers,
+                                label if ctx.progress else None, context=ctx):
+        yield result
 
 
 def warm_clean(ctx: Context) -> None:
@@ -492,7 +482,7 @@ def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
     """The sweep rows of one (modality, severity) over every noise seed and training run (in a worker)."""
     from evids.experiments.config import NoiseEntry
 
-    ctx = _FORKED_CTX["ctx"]
+    ctx = job_context()
     cfg, sc = ctx.cfg, ctx.cfg.sweep
     (seeds,) = extra
     modality, sev = job
@@ -673,7 +663,7 @@ def stage_conflict(ctx: Context) -> dict:
 
 def _conflict_job(k: int, extra: tuple) -> tuple[int, dict]:
     """The realised effect of program ``k`` (in a worker)."""
-    ctx = _FORKED_CTX["ctx"]
+    ctx = job_context()
     (progs,) = extra
     torch.set_num_threads(ctx.cfg.models.torch_threads)
     return k, _swap_program(ctx, progs[k])

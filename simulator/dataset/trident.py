@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -50,6 +49,7 @@ from simulator.physics.acoustics import (
     band_level_db,
     synthesize_audio,
 )
+from simulator.jobs import run_jobs
 from simulator.physics.rf import RFConfig, spectrogram_image, synthesize_rf
 from simulator.seeding import rng_for
 
@@ -534,55 +534,18 @@ def _write_one_clip(tmp: Path, k: int, item: PlanItem, config: TridentConfig, fr
     return {"clip": k + 1, "group": item.group, **{m: v for m, v in meta.items() if m != "drone_px"}}
 
 
-def _clip_worker_init(driver_pid: int) -> None:
-    from simulator.dataset.generate import _die_with_driver
-
-    _die_with_driver(driver_pid)
+def _clip_worker_init() -> None:
     import drjit as dr
 
     dr.set_thread_count(1)  # one process per core: Dr.Jit's own pool would oversubscribe
 
 
-def _run_clip_jobs(jobs: list[tuple], workers: int, progress: bool, label: str):
-    """Yield each job's manifest entry (in completion order) with a progress bar; in-process for one
-    worker, else a process pool whose workers die with the driver (see generate._die_with_driver)."""
-    bar = task = None
-    if progress:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-        task = bar.add_task("clips", total=len(jobs))
-        bar.start()
-    try:
-        if workers <= 1 or len(jobs) <= 1:
-            for job in jobs:
-                yield _write_one_clip(*job)
-                if bar is not None:
-                    bar.advance(task)
-            return
-        import multiprocessing as mp
-        from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
-
-        method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
-        pool = ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=mp.get_context(method),
-                                   initializer=_clip_worker_init, initargs=(os.getpid(),))
-        try:
-            pending = {pool.submit(_write_one_clip, *job) for job in jobs}
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_EXCEPTION)
-                for future in done:
-                    yield future.result()  # a failed clip raises here: the run stops, tmp is removed
-                    if bar is not None:
-                        bar.advance(task)
-        except BaseException:
-            from simulator.dataset.generate import terminate_pool
-
-            terminate_pool(pool)
-            raise
-        pool.shutdown(wait=True)
-    finally:
-        if bar is not None:
-            bar.stop()
+def _run_clip_jobs(jobs: list[tuple], workers: int, progress: bool, label: str) -> list[dict[str, Any]]:
+    """Each job's manifest entry (in job order) with a progress bar; in-process for one worker, else
+    a forkserver pool (simulator.jobs: workers die with the driver); a failed clip stops the run."""
+    start = "inline" if workers <= 1 or len(jobs) <= 1 else "forkserver"
+    return run_jobs(_write_one_clip, jobs, workers=workers, start=start, progress=label if progress else None,
+                    on_error="raise", initializer=_clip_worker_init)
 
 
 def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir: str | Path, seed: int, *,
@@ -620,11 +583,9 @@ def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir:
     if tmp.exists():
         shutil.rmtree(tmp)
     tmp.mkdir()
-    clips_meta = []
     try:
         jobs = [(tmp, k, plan[k], config, frames_fn, n_frames) for k in range(len(plan))]
-        for entry in _run_clip_jobs(jobs, workers, progress, f"trident {config.name}"):
-            clips_meta.append(entry)
+        clips_meta = _run_clip_jobs(jobs, workers, progress, f"trident {config.name}")
         clips_meta.sort(key=lambda c: c["clip"])
         manifest = {
             "format": "trident", "generator": "simulator.dataset.trident.generate_trident", "seed": int(seed),

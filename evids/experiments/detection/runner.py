@@ -32,6 +32,7 @@ from evids.experiments.detection.tracking import FrameDetections, run_tracker, t
 from evids.experiments.detection.train import MODEL_IDS, build_model, train_model
 from evids.runfolder import mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
+from simulator.jobs import run_jobs
 
 Log = Callable[[str], None]
 
@@ -149,16 +150,11 @@ def train(config_source: str | Path | dict, run_dir: Path, log: Log = print) -> 
     todo = [n for n in models_needed(cfg.conditions) if not (run_dir / "models" / f"{n}.pt").is_file()]
     records = []
     if cfg.train.workers > 1 and len(todo) > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
-
         del seqs
         log(f"train: {len(todo)} models in {min(cfg.train.workers, len(todo))} processes")
-        with ProcessPoolExecutor(min(cfg.train.workers, len(todo)), mp_context=mp.get_context("spawn")) as pool:
-            futures = [pool.submit(_train_one, json.loads(cfg.model_dump_json()), data, n, str(run_dir)) for n in todo]
-            for f in futures:
-                records.append(f.result())
-                log(f"train: {records[-1]['name']} done in {records[-1]['seconds']} s")
+        records = run_jobs(_train_one, [(json.loads(cfg.model_dump_json()), data, n, str(run_dir)) for n in todo],
+                           workers=cfg.train.workers, start="spawn",
+                           progress=lambda i, rec: log(f"train: {rec['name']} done in {rec['seconds']} s"))
     else:
         for name in todo:
             model, rec = train_model(name, seqs, cfg.train, log)
@@ -557,20 +553,18 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
                for e in dataset_entries(Path(path), ("test",), f"data.test.{name}") if e["split"] == "test"]
     args = (json.loads(cfg.model_dump_json()), str(run_dir), gate, temperature, fitted, str(exports), keys)
     workers = min(cfg.train.workers, len(entries))
-    results = []
-    if workers > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
+    if workers <= 1:
+        _worker_init(*args[:2])  # in-process: the same per-process state a pool worker sets up
+    finished = [0]
 
-        with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"), initializer=_worker_init, initargs=args[:2]) as pool:
-            futures = [pool.submit(_evaluate_entry, args, name, k, e) for name, k, e in entries]
-            for i, f in enumerate(futures):
-                results.append(f.result())
-                if (i + 1) % 6 == 0 or i + 1 == len(futures):
-                    log(f"  {i + 1}/{len(futures)} test sequences")
-    else:
-        _worker_init(*args[:2])
-        results = [_evaluate_entry(args, name, k, e) for name, k, e in entries]
+    def tick(i: int, result: dict) -> None:
+        finished[0] += 1
+        if workers > 1 and (finished[0] % 6 == 0 or finished[0] == len(entries)):
+            log(f"  {finished[0]}/{len(entries)} test sequences")
+
+    results = run_jobs(_evaluate_entry, [(args, name, k, e) for name, k, e in entries], workers=workers,
+                       start="spawn" if workers > 1 else "inline", initializer=_worker_init, initargs=args[:2],
+                       progress=tick)
     per_seq = [r for res in results for r in res["per_seq"]]
     det_rows = [r for res in results for r in res["det_rows"]]
     crop_rows = [r for res in results for r in res["crop_rows"]]
