@@ -22,15 +22,32 @@ from typing import Iterable, Iterator
 HASH_FILE = "files.sha256"
 
 
+@contextmanager
+def atomic_path(path: Path) -> Iterator[Path]:
+    """The one atomic-write helper: yield a hidden temporary sibling of ``path`` (this run's id in
+    its name, the same suffix, so writers that add one keep it) for the caller to write; on success
+    it is renamed over ``path``, on any error removed, so ``path`` is never half-written.
+
+    For writers that want a file name (``torch.save``, ``np.savez``, ``fig.savefig``); text and
+    bytes go through :func:`write_atomic`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{run_id()}{path.suffix}")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
 def write_atomic(path: Path, data: str | bytes) -> None:
     """Write via a temporary sibling and rename (no half-written file on failure)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{run_id()}")
-    if isinstance(data, bytes):
-        tmp.write_bytes(data)
-    else:
-        tmp.write_text(data)
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        if isinstance(data, bytes):
+            tmp.write_bytes(data)
+        else:
+            tmp.write_text(data)
 
 
 def hash_tree(folder: Path) -> dict[str, str]:

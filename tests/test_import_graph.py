@@ -17,7 +17,7 @@ ALLOWED: dict[str, set[str]] = {
     "simulator.seeding": {"scenes"},
     "simulator.files": {"scenes"},
     "simulator.jobs": {"scenes"},   # the one executor (process pools, Ray), lazily scenes.errors
-    "simulator.physics": {"scenes", "simulator.seeding"},
+    "simulator.physics": {"scenes", "simulator.seeding", "simulator.files"},  # files: the LOWTRAN table script
     "simulator.sensors": {"scenes", "simulator.seeding", "simulator.physics"},
     "simulator.render": {"scenes", "simulator.seeding", "simulator.physics", "simulator.sensors"},
     "simulator.formats": {"scenes", "simulator.seeding", "simulator.files", "simulator.physics", "simulator.sensors"},

@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -16,6 +17,7 @@ from evids.experiments.data import Prepared, labels_of, stack
 from evids.fusion import GMU, LateFusion
 from evids.models.backbones import MODALITIES, UnimodalModel, build_model, seeded_init
 from evids.models.train import TrainResult, predict, train_model
+from simulator.files import atomic_path
 from simulator.jobs import iter_jobs, job_context
 
 HEADS = ("sigmoid", "evidential")
@@ -248,11 +250,8 @@ def _state(models: Models) -> dict:
 
 def save_models(models: list[Models], path) -> None:
     """Atomic torch.save of every training seed's state dicts."""
-    import os
-
-    tmp = f"{path}.tmp-{os.getpid()}"
-    torch.save({"runs": [_state(m) for m in models]}, tmp)
-    os.replace(tmp, path)
+    with atomic_path(Path(path)) as tmp:
+        torch.save({"runs": [_state(m) for m in models]}, tmp)
 
 
 def _load_one(cfg: ExperimentConfig, state: dict) -> Models:

@@ -3,7 +3,6 @@ study, gate sweep with realised CPU timing) -> report. Each stage writes its fil
 (temporary name, then rename) and records itself in ``run.json`` only when complete."""
 from __future__ import annotations
 
-import os
 import time
 import zlib
 from dataclasses import dataclass, field
@@ -53,7 +52,7 @@ from evids.metrics import paired_bootstrap, paired_permutation_test
 from evids.models.backbones import MODALITIES
 from evids.runfolder import mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
-from simulator.files import write_atomic
+from simulator.files import atomic_path, write_atomic
 from simulator.jobs import job_context
 
 VARIANTS = ("clean", "standard", "all_spec", "iq")
@@ -389,12 +388,11 @@ def stage_evaluate(ctx: Context) -> dict:
     mean_correct = {k: np.mean(v, axis=0) for k, v in correct.items()}
     comps = [compare(ctx, name, mean_correct[a], mean_correct[b], scn) for a, b, name in COMPARISONS
              if a in mean_correct and b in mean_correct]
-    np.savez_compressed(ctx.run_dir / ".predictions.npz.tmp.npz", labels=y, clip_ids=cid.astype(str),
-                        scene_ids=scn.astype(str),
-                        **{f"{k}__probs": p.probs for k, p in preds0.items()},
-                        **{f"{k}__vacuity": p.vacuity for k, p in preds0.items() if p.vacuity is not None},
-                        **{f"{k}__conflict": p.conflict for k, p in preds0.items() if p.conflict is not None})
-    os.replace(ctx.run_dir / ".predictions.npz.tmp.npz", ctx.run_dir / "predictions.npz")
+    with atomic_path(ctx.run_dir / "predictions.npz") as tmp:
+        np.savez_compressed(tmp, labels=y, clip_ids=cid.astype(str), scene_ids=scn.astype(str),
+                            **{f"{k}__probs": p.probs for k, p in preds0.items()},
+                            **{f"{k}__vacuity": p.vacuity for k, p in preds0.items() if p.vacuity is not None},
+                            **{f"{k}__conflict": p.conflict for k, p in preds0.items() if p.conflict is not None})
     temps = [{"run": k, **{f"T_{n}": v for n, v in m.temperatures.items()},
               **{f"bound_{n}": f for n, f in m.temperature_flags.items()}} for k, m in enumerate(ctx.models)]
     rf_drop = None

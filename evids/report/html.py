@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from simulator.files import atomic_path
+
 MODALITIES = ("audio", "video", "rf")
 
 
@@ -74,10 +76,8 @@ def example_figure(clips, idx: list[int], degraded: dict[str, list], path: Path)
             ax.set_yticks([])
             ax.set_title(f"{title}" + (f"\n{clip.clip_id} seg {s}" if c == 0 else ""), fontsize=7)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, format="png", dpi=80)
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=80)
 
 
 def _cond(ev: dict, key: str) -> dict | None:

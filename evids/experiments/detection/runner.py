@@ -32,6 +32,7 @@ from evids.experiments.detection.tracking import FrameDetections, run_tracker, t
 from evids.experiments.detection.train import MODEL_IDS, build_model, train_model
 from evids.runfolder import mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
+from simulator.files import atomic_path
 from simulator.jobs import run_jobs
 
 Log = Callable[[str], None]
@@ -158,7 +159,8 @@ def train(config_source: str | Path | dict, run_dir: Path, log: Log = print) -> 
     else:
         for name in todo:
             model, rec = train_model(name, seqs, cfg.train, log)
-            torch.save(model.state_dict(), run_dir / "models" / f"{name}.pt")
+            with atomic_path(run_dir / "models" / f"{name}.pt") as tmp:
+                torch.save(model.state_dict(), tmp)
             records.append(rec)
     old = json.loads((run_dir / "train.json").read_text()) if (run_dir / "train.json").is_file() else {"models": []}
     write_json(run_dir / "train.json", {"models": old["models"] + records})
@@ -172,10 +174,8 @@ def _train_one(cfg_dict: dict, data: dict, name: str, run_dir: str) -> dict:
     torch.set_num_threads(1)
     seqs = load_split(data, cfg, "train")
     model, rec = train_model(name, seqs, cfg.train, None)
-    path = Path(run_dir) / "models" / f"{name}.pt"
-    tmp = path.with_suffix(".pt.tmp")
-    torch.save(model.state_dict(), tmp)
-    tmp.replace(path)
+    with atomic_path(Path(run_dir) / "models" / f"{name}.pt") as tmp:
+        torch.save(model.state_dict(), tmp)
     return rec
 
 
@@ -575,7 +575,8 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
             coco_dets.setdefault(key, []).extend(v)
     example = next((res["example"] for res in results if res["example"] is not None), None)
     if example is not None:
-        np.savez_compressed(run_dir / "example_crossover.npz", **example)
+        with atomic_path(run_dir / "example_crossover.npz") as tmp:
+            np.savez_compressed(tmp, **example)
     write_csv(run_dir / "tables" / "per_sequence.csv", per_seq)
     write_csv(run_dir / "tables" / "detections.csv", det_rows)
     write_csv(run_dir / "tables" / "crops.csv", crop_rows)
