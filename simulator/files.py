@@ -157,6 +157,8 @@ def is_evids_output(folder: Path) -> bool:
         return fmt in ("evids-native-dataset", "trident") and (folder / "manifest.json").is_file()
     if (folder / "config.yaml").is_file() and (folder / "run.json").is_file():
         return True  # an experiment run folder
+    if (folder / "config.json").is_file() and (folder / "data.json").is_file():
+        return True  # a detection run folder
     return (folder / "meta.json").is_file() and (folder / HASH_FILE).is_file()
 
 

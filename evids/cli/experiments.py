@@ -33,13 +33,11 @@ def train(
     """
     from evids.experiments import load_experiment_config
     from evids.experiments.runner import stage_train
-    from simulator.files import DatasetLock, check_output, write_marker
+    from evids.runfolder import create_run_folder
+    from simulator.files import DatasetLock
 
     cfg = load_experiment_config(config)  # validated in full (evids.experiments.validate) before any work
-    inputs = [config] + ([Path(cfg.dataset.path)] if cfg.dataset.path else [])
-    check_output(out, inputs=inputs, allow_resume=True)
-    out.mkdir(parents=True, exist_ok=True)
-    write_marker(out, "run")
+    create_run_folder(out, inputs=[config] + ([Path(cfg.dataset.path)] if cfg.dataset.path else []))
     with DatasetLock(out, "train"):  # one writer per run folder
         stage_train(cfg, out, progress)
     typer.echo(f"trained: {out / 'models.pt'}")
@@ -105,18 +103,18 @@ def demo(
     evidential models, run all ablation conditions, a reduced degradation sweep, the conflict study
     and a gate sweep, and write OUT/report.html (about 10 minutes on 2 CPU cores; --quick: toy scale).
     """
-    if detection:
-        from evids.experiments.detection import run_detection_demo
+    from evids.runfolder import create_run_folder
+    from simulator.files import DatasetLock
 
-        typer.echo(f"report: {run_detection_demo(out, typer.echo)}")
-        return
-    from evids.experiments import run_demo
-    from simulator.files import DatasetLock, check_output, write_marker
-
-    check_output(out, allow_resume=True)
-    out.mkdir(parents=True, exist_ok=True)
-    write_marker(out, "run")
+    create_run_folder(out)
     with DatasetLock(out, "demo"):
+        if detection:
+            from evids.experiments.detection import run_detection_demo
+
+            typer.echo(f"report: {run_detection_demo(out, typer.echo)}")
+            return
+        from evids.experiments import run_demo
+
         times = run_demo(out, quick=quick, progress=progress, log=typer.echo)
     typer.echo(f"total: {sum(times.values()):.1f} s")
     typer.echo(f"report: {out / 'report.html'}")

@@ -30,9 +30,9 @@ from evids.experiments.detection.config import CONDITIONS, DetectionConfig, load
 from evids.experiments.detection.data import SequenceData, crop_resize, dataset_entries, inputs, load_sequence
 from evids.experiments.detection.tracking import FrameDetections, run_tracker, tracking_on_absence
 from evids.experiments.detection.train import MODEL_IDS, build_model, train_model
-from evids.runfolder import mark_stage, write_csv, write_json
+from evids.runfolder import create_run_folder, mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
-from simulator.files import atomic_path
+from simulator.files import atomic_path, check_output
 from simulator.jobs import run_jobs
 
 Log = Callable[[str], None]
@@ -135,13 +135,17 @@ def train(config_source: str | Path | dict, run_dir: Path, log: Log = print) -> 
     cfg = load_detection_config(config_source)
     check_inputs(cfg)
     run_dir = Path(run_dir)
+    inputs = [Path(src.path) for src in (cfg.data.train, *cfg.data.test.values()) if src.path is not None]
+    if isinstance(config_source, (str, Path)) and Path(config_source).is_file():
+        inputs.append(Path(config_source))
+    check_output(run_dir, inputs=inputs, allow_resume=True)  # the safe-output rule, before any work
     if (run_dir / "config.json").exists():
         old = json.loads((run_dir / "config.json").read_text())
         if old != json.loads(cfg.model_dump_json()):
             raise UserInputError(f"--out: {str(run_dir)!r} holds a run of another config; choose a new folder")
     t0 = time.perf_counter()
     data = resolve_data(cfg, run_dir, log, tests=False)
-    run_dir.mkdir(parents=True, exist_ok=True)
+    create_run_folder(run_dir, inputs=inputs, kind="detection run")
     write_json(run_dir / "config.json", json.loads(cfg.model_dump_json()))
     torch.set_num_threads(cfg.train.threads)
     seqs = load_split(data, cfg, "train")
