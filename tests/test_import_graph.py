@@ -26,16 +26,15 @@ ALLOWED: dict[str, set[str]] = {
                           "simulator.sensors", "simulator.render", "simulator.formats"},
     "simulator": set(),
     "evids.core": {"scenes"},
-    "evids.data": {"scenes", "simulator.formats", "evids.core"},
     "evids.runfolder": {"scenes", "simulator.files", "evids.core"},
     "evids.report": {"scenes", "simulator.files", "evids.core", "evids.runfolder"},
     "evids.experiments": {"scenes", "degradations", "simulator.seeding", "simulator.files", "simulator.jobs",
                           "simulator.physics",
-                          "simulator.sensors", "simulator.formats", "simulator.dataset", "evids.core", "evids.data",
+                          "simulator.sensors", "simulator.formats", "simulator.dataset", "evids.core",
                           "evids.runfolder", "evids.report"},
     "evids.cli": {"scenes", "degradations", "simulator.seeding", "simulator.files", "simulator.jobs", "simulator.physics",
                   "simulator.sensors", "simulator.render", "simulator.formats", "simulator.dataset", "evids.core",
-                  "evids.data", "evids.runfolder", "evids.report", "evids.experiments"},
+                  "evids.runfolder", "evids.report", "evids.experiments"},
 }
 EVIDS_CORE = {"heads", "losses", "fusion", "gating", "metrics", "models", "__init__"}
 

@@ -287,8 +287,6 @@ def compare(ctx: Context, name: str, correct_a: np.ndarray, correct_b: np.ndarra
     """Paired accuracy comparison A - B on per-row correctness (averaged over training runs and
     noise seeds): scene-clustered sign-flip permutation p, MDE at 80 % power, clustered bootstrap CI,
     and a verdict that says 'no difference' only when the MDE is below the effect of interest."""
-    from evids.metrics import accuracy  # noqa: F401  (kept for API symmetry)
-
     bc = ctx.cfg.bootstrap
     n_cl = len(set(clusters.tolist())) if len(clusters) else 0
     row = {"comparison": name, "n_segments": len(clusters), "n_clusters": n_cl, "cluster_unit": "scene"}
@@ -473,7 +471,7 @@ def _noisy_unimodal(ctx: Context, modality: str, y: np.ndarray) -> float | None:
     return float(np.mean(vals)) if vals else None
 
 
-SWEEP_RULES = ("late", "gmu", "average", "ds", "yager", "discounted")
+FUSION_RULES = ("late", "gmu", "average", "ds", "yager", "discounted")  # the rules the sweep and conflict study compare
 
 
 def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
@@ -495,7 +493,7 @@ def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
     for seed, run in [(s_, r_) for s_ in seeds for r_ in ctx.runs]:
         out = ctx.outputs("clean", 0, run=run) if sev == 0 else ctx.outputs(
             "sweep", seed, run=run, **{stream: [NoiseEntry(name=name, severity=sev)]})
-        for rule in (*SWEEP_RULES, "unimodal_sigmoid", "unimodal_edl"):
+        for rule in (*FUSION_RULES, "unimodal_sigmoid", "unimodal_edl"):
             cond = Condition(rule, rule, "sweep", {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}.get(rule, rule),
                              modality if rule.startswith("unimodal") else None)
             pred = predict_condition(cond, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction,
@@ -524,9 +522,6 @@ def stage_sweep(ctx: Context) -> dict:
     return {"rows": rows}
 
 
-CONFLICT_RULES = ("late", "gmu", "average", "ds", "yager", "discounted")
-
-
 def _majority(alpha: np.ndarray) -> np.ndarray:
     votes = alpha.argmax(-1)                          # (3, N)
     return (votes.sum(0) >= 2).astype(np.int64)       # class 1 when >= 2 of 3 vote Background
@@ -536,7 +531,7 @@ def _rule_preds(ctx: Context, run: int, out: Outputs, cid: np.ndarray) -> dict[s
     cfg = ctx.cfg
     preds = {rule: predict_condition(Condition(rule, rule, "conflict", rule), ctx.models[run], out, cid,
                                      cfg.fusion.c_max, cfg.fusion.construction, None).probs.argmax(1)
-             for rule in CONFLICT_RULES}
+             for rule in FUSION_RULES}
     preds["majority_vote"] = _majority(out.alpha)
     return preds
 

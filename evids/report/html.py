@@ -360,21 +360,6 @@ def _gate_fig(gate: dict) -> str:
     return _png(fig)
 
 
-def _conflict_fig(conf: dict) -> str:
-    c = conf["conflict_C"]
-    edges = np.asarray(c["edges"])
-    fig = _fig(5.5, 3.5)
-    ax = fig.add_subplot(1, 1, 1)
-    for k, col in (("agreeing", "tab:blue"), ("conflicting", "tab:red")):
-        h = np.asarray(c[k], float)
-        ax.stairs(h / max(h.sum(), 1), edges, label=f"{k} (n={int(h.sum())})", color=col)
-    ax.axvline(c["c_max"], color="k", ls=":", label="C_max (fallback)")
-    ax.set_xlabel("DS conflict C (largest fold step)")
-    ax.set_ylabel("fraction of segments")
-    ax.legend(fontsize=7)
-    return _png(fig)
-
-
 CSS = """body{font-family:sans-serif;max-width:1200px;margin:1em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:.6em 0;font-size:13px}th,td{border:1px solid #bbb;padding:3px 6px;text-align:right}
 th{background:#eee}td:first-child,th:first-child{text-align:left}figure{margin:.5em 0}img{max-width:100%}

@@ -1,7 +1,6 @@
 """Render one scenario into the native layout (and optionally the Anti-UAV layout and a preview)."""
 from __future__ import annotations
 
-import json
 import shutil
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -275,7 +274,3 @@ def render_rgb_video(scenario: Scenario, seed: int, n_frames: int, width_px: int
     finally:
         renderer.close()
     return out
-
-
-def load_json(path: Path) -> dict:
-    return json.loads(Path(path).read_text())

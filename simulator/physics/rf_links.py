@@ -180,10 +180,6 @@ def ofdm_schedule(preset: OfdmPreset, rng: np.random.Generator, duration_s: floa
     return Schedule(start_s=starts, duration_s=lengths, centre_hz=np.full(n, centre), bandwidth_hz=preset.bandwidth_hz)
 
 
-def schedule_for(preset: LinkPreset, rng: np.random.Generator, duration_s: float) -> Schedule:
-    return fhss_schedule(preset, rng, duration_s) if preset.kind == "fhss" else ofdm_schedule(preset, rng, duration_s)
-
-
 def band_overlap_fraction(centre_hz: np.ndarray, bandwidth_hz: float, window_low_hz: float,
                           window_high_hz: float) -> np.ndarray:
     """Fraction of each burst's band [c - B/2, c + B/2] inside the receiver passband."""

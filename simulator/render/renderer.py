@@ -199,11 +199,6 @@ class SkyMaps:
         return self.rgb[min(int(v * ENV_HEIGHT), ENV_HEIGHT - 1), min(int(u * ENV_WIDTH), ENV_WIDTH - 1)]
 
 
-def _color(mi, values) -> object:
-    return mi.Color3f(*[float(v) for v in values])
-
-
-
 class _View:
     """One camera's batched Mitsuba scene and our own ray generation.
 

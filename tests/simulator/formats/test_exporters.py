@@ -1,13 +1,13 @@
-"""Exporters round-trip through the evids.data loaders: native labels -> Anti-UAV (thermal and
+"""Exporters round-trip through the simulator.formats readers: native labels -> Anti-UAV (thermal and
 RGB-T), MM-UAV (every frame and every k-th frame, with/without distractors), COCO-video."""
 import json
 
 import numpy as np
 import pytest
 
-from evids.data import antiuav as antiuav_loader
-from evids.data import coco as coco_loader
-from evids.data import mot as mot_loader
+from simulator.formats import antiuav as antiuav_loader
+from simulator.formats import coco as coco_loader
+from simulator.formats import mot as mot_loader
 from simulator.dataset.generate import export_dataset, generate_dataset, load_manifest
 from simulator.formats.antiuav import primary_target_id
 from simulator.formats.native import load_labels, read_image

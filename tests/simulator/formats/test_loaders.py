@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from evids.data import antiuav, coco, mot
+from simulator.formats import antiuav, coco, mot
 
 
 def _touch_frames(folder, n, digits=6, ext=".jpg"):
