@@ -19,6 +19,7 @@ from evids.models.backbones import MODALITIES, UnimodalModel, build_model, seede
 from evids.models.train import TrainResult, predict, train_model
 from simulator.files import atomic_path
 from simulator.jobs import iter_jobs, job_context
+from simulator.seeding import STREAMS
 
 HEADS = ("sigmoid", "evidential")
 
@@ -202,7 +203,7 @@ def train_all(cfg: ExperimentConfig, prep: Prepared, progress: bool = True, trai
     out_tr = encode(stub, x["train"]["mfcc"], x["train"]["video"], x["train"]["rf"])
     noisy = val_noisy if val_noisy is not None else x["val"]
     out_va = encode(stub, noisy["mfcc"], noisy["video"], noisy["rf"])
-    fs = int(np.random.SeedSequence([int(train_seed), 99]).generate_state(1, dtype=np.uint32)[0])
+    fs = int(np.random.SeedSequence([int(train_seed), STREAMS["fusion_init"]]).generate_state(1, dtype=np.uint32)[0])
     heads = {}
     for name, out, y in (("val_noisy", out_va, y_va), ("train_clean", out_tr, y_tr)):
         with seeded_init(fs):

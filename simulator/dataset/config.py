@@ -15,11 +15,11 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from scenes.loader import GENERATION_DIR
+from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M
 from scenes.schema import Flyby, Hover, Orbit, Scenario, Target, Waypoints
 from simulator.seeding import rng_for
 
 SPLITS = ("train", "val", "test")
-DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
 DISTRACTOR_KINDS = ("bird", "airliner")
 
 # sub-streams of the "generation" stream per sequence (never renumber: it would change datasets)
@@ -287,7 +287,7 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_di
             targets[p]["thermal"]["offsets_k"] = {}
             targets[p]["thermal"]["offsets_end_k"] = None
             targets[p]["materials"] = {}
-            targets[p]["size_m"] = {"quadcopter": 0.45, "hexacopter": 0.9, "fixed_wing": 2.0}[new_kind]
+            targets[p]["size_m"] = DRONE_SIZE_M[new_kind]
     if r.target_size_scale is not None:
         lo, hi = r.target_size_scale.min, r.target_size_scale.max
         targets[p]["size_m"] = round(targets[p]["size_m"] * (lo + (hi - lo) * size_draw), 4)

@@ -24,6 +24,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from scenes.kinds import DRONE_KINDS
 from scenes.loader import GENERATION_DIR
 from scenes.schema import Scenario
 from simulator.formats.trident import (
@@ -44,7 +45,6 @@ from simulator.formats.trident import (
 )
 from simulator.physics.acoustics import (
     AUDIO_SAMPLE_RATE_HZ,
-    DRONE_KINDS,
     Ambience,
     band_level_db,
     synthesize_audio,

@@ -19,6 +19,8 @@ import scipy.fft as sfft
 from numpy.lib.stride_tricks import sliding_window_view
 from pydantic import BaseModel, ConfigDict, Field
 
+from scenes.kinds import DRONE_KINDS
+from scenes.kinds import DRONE_SIZE_M as _REFERENCE_SIZE_M
 from simulator.seeding import rng_for
 
 AUDIO_SAMPLE_RATE_HZ = 44_100
@@ -33,14 +35,10 @@ AMBIENT_SOURCE_INDEX = 1000       # rng index base of ambient beds (targets use 
 MOTOR_POLE_PAIRS = 7              # 12N14P outrunner: electrical frequency = 7 x shaft rate
 N_BLADE_HARMONICS = 10
 
-MULTIROTOR_KINDS = ("quadcopter", "hexacopter")
-DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
-
 # relative source levels at 1 m (dB SPL, unweighted) for the reference size: they fix the tonal /
 # broadband balance; the absolute level comes from the sound power (sound_power_dba); docs/AUDIO_RF.md
 _TONAL_DB_1M = {"quadcopter": 78.0, "hexacopter": 81.0, "fixed_wing": 80.0}
 _BROADBAND_DB_1M = {"quadcopter": 72.0, "hexacopter": 75.0, "fixed_wing": 74.0}
-_REFERENCE_SIZE_M = {"quadcopter": 0.45, "hexacopter": 0.8, "fixed_wing": 1.5}
 BROADBAND_SHAPE = (300.0, 6000.0, -3.0)   # rotor broadband: band edges (Hz) and tilt (dB/octave)
 BPF_MODULATION = 0.3                      # broadband amplitude modulation at the blade-passing frequency
 SPHERE_DB = 10.0 * np.log10(4.0 * np.pi)  # L_p(1 m) = L_W - 10.99 dB in free field (sphere of 1 m^2 x 4 pi)

@@ -26,6 +26,7 @@ import numpy as np
 import scipy.fft as sfft
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from scenes.kinds import DRONE_KINDS
 from simulator.physics import propagation as prop
 from simulator.physics import rf_links
 from simulator.physics.propagation import SPEED_OF_LIGHT_MPS, free_space_path_loss_db  # noqa: F401 (re-export)
@@ -39,7 +40,6 @@ SPECTROGRAM_PX = 112
 OFDM_TAPER = 32                    # sin^2 edge window of each OFDM symbol (1.6 us at 20 MS/s); 2 x 32 <= CP keeps
                                    # an FFT window starting 32 samples into the CP untouched
 RAMP_S = 10e-6                     # burst power ramp-up/down time of the hopping transmitters
-DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
 _EMITTER_WIFI, _EMITTER_BT, _EMITTER_NOISE = 2, 3, 4
 _PART_SCHEDULE, _PART_WAVEFORM, _PART_FADING = 0, 1, 2
 # fields of the first RF model (fixed 8-channel hopping, one video link); replaced by ``links``

@@ -19,8 +19,9 @@ import numpy as np
 import torch
 
 from scenes.errors import UserInputError
+from simulator.seeding import STREAMS
 
-DETECTION_STREAM = 1600  # SeedSequence stream id of this experiment (outside simulator.seeding's 1-7)
+DETECTION_STREAM = STREAMS["detection"]  # SeedSequence stream id of this experiment
 THERMAL_SCALE_K = 1.0    # thermal input = (T - frame median) / 1 K, clipped to +-8
 
 
