@@ -23,16 +23,19 @@ HASH_FILE = "files.sha256"
 
 
 @contextmanager
-def atomic_path(path: Path) -> Iterator[Path]:
-    """The one atomic-write helper: yield a hidden temporary sibling of ``path`` (this run's id in
-    its name, the same suffix, so writers that add one keep it) for the caller to write; on success
-    it is renamed over ``path``, on any error removed, so ``path`` is never half-written.
+def atomic_path(path: Path, *, suffix: str = "", hidden: bool = True) -> Iterator[Path]:
+    """The one atomic-write helper: yield a temporary sibling of ``path``,
+    ``[.]NAME.tmp-<run id>[suffix]``, for the caller to write; on success it is renamed over
+    ``path``, on any error removed, so ``path`` is never half-written.
 
     For writers that want a file name (``torch.save``, ``np.savez``, ``fig.savefig``); text and
-    bytes go through :func:`write_atomic`."""
+    bytes go through :func:`write_atomic`. ``suffix``: for writers that append their own when it
+    is missing (``np.savez``: ``".npz"``). ``hidden=False`` for ``torch.save``, which names the
+    archive inside the file after the file name up to its last dot: ``NAME.tmp-<id>`` keeps it
+    ``NAME``, so the bytes do not depend on the temporary's name."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{run_id()}{path.suffix}")
+    tmp = path.with_name(f"{'.' if hidden else ''}{path.name}.tmp-{run_id()}{suffix}")
     try:
         yield tmp
         os.replace(tmp, path)
@@ -226,7 +229,7 @@ def _pid_alive(pid: int) -> bool:
 def clean_dead_temps(parent: Path, name: str | None = None) -> list[Path]:
     """Remove hidden temp/old folders under ``parent`` (for ``name`` only, if given) whose owning
     run is dead (same host, pid gone); a live run's temporaries are never touched. Returns them."""
-    removed = []
+    removed: list[Path] = []
     parent = Path(parent)
     if not parent.is_dir():
         return removed

@@ -251,7 +251,7 @@ def _state(models: Models) -> dict:
 
 def save_models(models: list[Models], path) -> None:
     """Atomic torch.save of every training seed's state dicts."""
-    with atomic_path(Path(path)) as tmp:
+    with atomic_path(Path(path), hidden=False) as tmp:  # torch: archive named "models.pt" as before
         torch.save({"runs": [_state(m) for m in models]}, tmp)
 
 

@@ -386,7 +386,7 @@ def stage_evaluate(ctx: Context) -> dict:
     mean_correct = {k: np.mean(v, axis=0) for k, v in correct.items()}
     comps = [compare(ctx, name, mean_correct[a], mean_correct[b], scn) for a, b, name in COMPARISONS
              if a in mean_correct and b in mean_correct]
-    with atomic_path(ctx.run_dir / "predictions.npz") as tmp:
+    with atomic_path(ctx.run_dir / "predictions.npz", suffix=".npz") as tmp:
         np.savez_compressed(tmp, labels=y, clip_ids=cid.astype(str), scene_ids=scn.astype(str),
                             **{f"{k}__probs": p.probs for k, p in preds0.items()},
                             **{f"{k}__vacuity": p.vacuity for k, p in preds0.items() if p.vacuity is not None},

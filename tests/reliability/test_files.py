@@ -109,12 +109,26 @@ def test_atomic_path_publishes_only_a_complete_file_and_keeps_the_suffix(tmp_pat
     import numpy as np
 
     target = tmp_path / "sub" / "arrays.npz"
-    with atomic_path(target) as tmp:
+    with atomic_path(target, suffix=".npz") as tmp:
         assert tmp.parent == target.parent and tmp.name.startswith(".arrays.npz.tmp-") and tmp.suffix == ".npz"
         np.savez_compressed(tmp, a=np.arange(3))  # adds no second ".npz": the suffix is already there
         assert not target.exists()
     assert np.load(target)["a"].tolist() == [0, 1, 2]
     assert sorted(p.name for p in target.parent.iterdir()) == ["arrays.npz"]
+
+
+def test_torch_save_through_atomic_path_is_byte_identical_to_a_direct_save(tmp_path):
+    """torch.save names the archive inside the file after the file name: the temporary's name
+    must not leak into the bytes (models.pt is byte-identical run to run)."""
+    import torch
+
+    state = {"w": torch.arange(4.0)}
+    torch.save(state, tmp_path / "direct.pt.tmp-1234")   # how models.pt was written before the helper
+    (tmp_path / "direct.pt.tmp-1234").rename(tmp_path / "direct.pt")
+    (tmp_path / "a").mkdir()
+    with atomic_path(tmp_path / "a" / "direct.pt", hidden=False) as tmp:
+        torch.save(state, tmp)
+    assert (tmp_path / "a" / "direct.pt").read_bytes() == (tmp_path / "direct.pt").read_bytes()
 
 
 def test_atomic_path_leaves_the_old_file_untouched_and_no_temporary_on_failure(tmp_path):

@@ -163,7 +163,7 @@ def train(config_source: str | Path | dict, run_dir: Path, log: Log = print) -> 
     else:
         for name in todo:
             model, rec = train_model(name, seqs, cfg.train, log)
-            with atomic_path(run_dir / "models" / f"{name}.pt") as tmp:
+            with atomic_path(run_dir / "models" / f"{name}.pt", hidden=False) as tmp:
                 torch.save(model.state_dict(), tmp)
             records.append(rec)
     old = json.loads((run_dir / "train.json").read_text()) if (run_dir / "train.json").is_file() else {"models": []}
@@ -178,7 +178,7 @@ def _train_one(cfg_dict: dict, data: dict, name: str, run_dir: str) -> dict:
     torch.set_num_threads(1)
     seqs = load_split(data, cfg, "train")
     model, rec = train_model(name, seqs, cfg.train, None)
-    with atomic_path(Path(run_dir) / "models" / f"{name}.pt") as tmp:
+    with atomic_path(Path(run_dir) / "models" / f"{name}.pt", hidden=False) as tmp:
         torch.save(model.state_dict(), tmp)
     return rec
 
@@ -579,7 +579,7 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
             coco_dets.setdefault(key, []).extend(v)
     example = next((res["example"] for res in results if res["example"] is not None), None)
     if example is not None:
-        with atomic_path(run_dir / "example_crossover.npz") as tmp:
+        with atomic_path(run_dir / "example_crossover.npz", suffix=".npz") as tmp:
             np.savez_compressed(tmp, **example)
     write_csv(run_dir / "tables" / "per_sequence.csv", per_seq)
     write_csv(run_dir / "tables" / "detections.csv", det_rows)
