@@ -157,7 +157,7 @@ def _result_cm(b: Tensor, u: Tensor, construction: Construction) -> tuple[Tensor
         safe = mass > tiny
         p = torch.where(safe, b / torch.where(safe, mass, torch.ones((), dtype=b.dtype)), torch.full((), 1.0 / k, dtype=b.dtype))
         alpha = p * s
-    return tuple(t.movedim(0, -1).contiguous() for t in (alpha, p, b))  # type: ignore[return-value]
+    return tuple(t.movedim(0, -1).contiguous() for t in (alpha, p, b))
 
 
 def _ds_step(b1: Tensor, u1: Tensor, b2: Tensor, u2: Tensor) -> tuple[Tensor, Tensor, Tensor]:
@@ -199,7 +199,7 @@ def _fold(
     modality leaves the running opinion unchanged bit for bit, and a sample's first available
     modality is taken as is."""
     fb, fu = b[0], u[0]
-    seen = mask[0] if mask is not None else None
+    seen: Tensor = mask[0] if mask is not None else None  # read only when a mask is given
     conflicts = []
     for m in range(1, b.shape[0]):
         nb, nu, c = step(fb, fu, b[m], u[m])

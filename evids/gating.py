@@ -280,7 +280,7 @@ def subset_fusion_table(
     """
     if rule not in FUSION_RULES:
         raise ValueError(f"rule must be one of {sorted(FUSION_RULES)}, got {rule!r}")
-    stacked = torch.stack(list(alphas)) if isinstance(alphas, (list, tuple)) else alphas
+    stacked: torch.Tensor = torch.stack(list(alphas)) if isinstance(alphas, (list, tuple)) else alphas
     check_alpha(stacked, "alphas", min_classes=2)
     if stacked.dim() != 3:
         raise ValueError(f"alphas must have shape (M, N, K), got {tuple(stacked.shape)}")
@@ -361,7 +361,7 @@ def sweep_gates(
     and ``skip_rate_per_modality`` (not evaluated), ``exclusion_rate`` (not fused),
     ``abstain_rate``, ``accuracy_answered`` (on non-abstained steps; NaN if none) and ``forced``.
     """
-    stacked = torch.stack(list(alphas)) if isinstance(alphas, (list, tuple)) else alphas
+    stacked: torch.Tensor = torch.stack(list(alphas)) if isinstance(alphas, (list, tuple)) else alphas
     check_alpha(stacked, "alphas", min_classes=2)
     if stacked.dim() != 3:
         raise ValueError(f"alphas must have shape (M, N, K), got {tuple(stacked.shape)}")

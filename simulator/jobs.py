@@ -26,7 +26,7 @@ import os
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Iterator, Literal, Sequence
+from typing import Any, Callable, Generator, Iterable, Iterator, Literal, Sequence
 
 Start = Literal["inline", "fork", "forkserver", "spawn", "ray"]
 START_METHODS: tuple[str, ...] = ("inline", "fork", "forkserver", "spawn", "ray")
@@ -141,24 +141,24 @@ def iter_jobs(fn: Callable, calls: Iterable[Sequence[Any]], *, workers: int = 1,
     runs once in each pool worker (not inline, not on Ray), after die-with-driver and the context
     are set up. ``ray_address``: the Ray cluster for ``start="ray"`` (default: a local one with
     ``workers`` CPUs, started and shut down here)."""
-    calls = [tuple(c) for c in calls]
+    calls_: list[tuple] = [tuple(c) for c in calls]
     if start not in START_METHODS:
         raise ValueError(f"start must be one of {START_METHODS}, got {start!r}")
     if on_error not in ("collect", "raise"):
         raise ValueError(f"on_error must be 'collect' or 'raise', got {on_error!r}")
     bar = task = None
-    if isinstance(progress, str) and calls:
-        bar, task = _progress_bar(progress, len(calls))
+    if isinstance(progress, str) and calls_:
+        bar, task = _progress_bar(progress, len(calls_))
     previous = list(_CONTEXT)
     _CONTEXT[:] = [context] if context is not None else []
-    gen: Iterator[tuple[int, Any]] | None = None
+    gen: Generator[tuple[int, Any], None, None] | None = None
     try:
         if start == "inline":
-            gen = _inline(fn, calls, on_error)
+            gen = _inline(fn, calls_, on_error)
         elif start == "ray":
-            gen = _ray(fn, calls, workers, on_error, ray_address)
+            gen = _ray(fn, calls_, workers, on_error, ray_address)
         else:
-            gen = _pool(fn, calls, workers, start, on_error, context, initializer, initargs)
+            gen = _pool(fn, calls_, workers, start, on_error, context, initializer, initargs)
         for i, result in gen:
             if bar is not None:
                 bar.advance(task)
@@ -176,14 +176,14 @@ def iter_jobs(fn: Callable, calls: Iterable[Sequence[Any]], *, workers: int = 1,
 def run_jobs(fn: Callable, calls: Iterable[Sequence[Any]], **kwargs: Any) -> list[Any]:
     """``[fn(*call) for call in calls]`` on the chosen executor (see :func:`iter_jobs` for the
     options); results in call order whatever order they finished in."""
-    calls = [tuple(c) for c in calls]
-    out: list[Any] = [None] * len(calls)
-    for i, result in iter_jobs(fn, calls, **kwargs):
+    calls_ = [tuple(c) for c in calls]
+    out: list[Any] = [None] * len(calls_)
+    for i, result in iter_jobs(fn, calls_, **kwargs):
         out[i] = result
     return out
 
 
-def _inline(fn: Callable, calls: list[tuple], on_error: str) -> Iterator[tuple[int, Any]]:
+def _inline(fn: Callable, calls: list[tuple], on_error: str) -> Generator[tuple[int, Any], None, None]:
     for i, call in enumerate(calls):
         if on_error == "raise":
             result = fn(*call)
@@ -196,7 +196,7 @@ def _inline(fn: Callable, calls: list[tuple], on_error: str) -> Iterator[tuple[i
 
 
 def _pool(fn: Callable, calls: list[tuple], workers: int, start: str, on_error: str, context: Any,
-          initializer: Callable | None, initargs: tuple) -> Iterator[tuple[int, Any]]:
+          initializer: Callable | None, initargs: tuple) -> Generator[tuple[int, Any], None, None]:
     if not calls:
         return
     import multiprocessing as mp
@@ -234,7 +234,7 @@ def _pool(fn: Callable, calls: list[tuple], workers: int, start: str, on_error: 
 
 
 def _ray(fn: Callable, calls: list[tuple], workers: int, on_error: str,
-         address: str | None) -> Iterator[tuple[int, Any]]:
+         address: str | None) -> Generator[tuple[int, Any], None, None]:
     try:
         import ray
     except ImportError:

