@@ -76,7 +76,7 @@ job="${1:-}"
 case "$job" in
   demo)
     install_system
-    install_python "audio,tracking"   # tracking: trackeval for `evids demo --detection`
+    install_python "audio,tracking,svanstrom"   # tracking: trackeval for `evids demo --detection`; svanstrom: `evids sim2real`
     shift
     .venv/bin/evids demo --out out/demo "$@"
     echo "open out/demo/report.html"
@@ -84,7 +84,7 @@ case "$job" in
   test)
     install_system
     install_chromium
-    install_python "audio,dev,ray"
+    install_python "audio,dev,ray,svanstrom"
     shift
     set +e
     .venv/bin/python -m pytest -q -p no:cacheprovider -n 2 "$@"

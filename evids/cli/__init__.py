@@ -27,12 +27,14 @@ def _register_all() -> None:
     from evids.cli import experiments as experiments_cli
     from evids.cli import generate as generate_cli
     from evids.cli import render as render_cli
+    from evids.cli import sim2real as sim2real_cli
 
     render_cli.register(app)
     degrade_cli.register(app)
     generate_cli.register(app)
     experiments_cli.register(app)
     detect_cli.register(app)
+    sim2real_cli.register(app)
 
 
 def main(argv: list[str] | None = None) -> None:

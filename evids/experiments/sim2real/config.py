@@ -1,0 +1,81 @@
+"""The sim-to-real protocol file (examples/sim2real_svanstrom.yaml), validated at the boundary."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from simulator.formats.svanstrom import VIDEO_CLASSES
+
+DEFAULT_CONFIG = Path(__file__).resolve().parents[3] / "examples" / "sim2real_svanstrom.yaml"
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SyntheticClass(_Model):
+    """How one real class is generated: a generation config (scenes/generation schema; scenario paths
+    relative to the protocol file) and how many sequences."""
+
+    generation: dict[str, Any]
+    sequences: int = Field(ge=1, le=10_000)
+    quick_sequences: int = Field(default=2, ge=1, le=100)
+
+
+class VisualProtocol(_Model):
+    classes: dict[str, SyntheticClass] = Field(min_length=2)
+    frames: int = Field(default=30, ge=2, le=10_000, description="frames per synthetic sequence")
+    frames_per_real_clip: int = Field(default=12, ge=2, le=1000, description="sampled frames per real clip")
+    crop_px: int = Field(default=32, ge=8, le=256)
+    crop_context: float = Field(default=2.0, ge=1.0, le=8.0, description="crop side / largest box side")
+    min_crop_px: int = Field(default=16, ge=4, le=256)
+    quick_image_size: tuple[int, int] = (96, 80)
+    quick_thermal_image_size: tuple[int, int] = (64, 48)
+    quick_frames: int = Field(default=4, ge=2, le=100)
+    workers: int = Field(default=2, ge=1, le=64)
+
+    @field_validator("classes")
+    @classmethod
+    def _known(cls, value: dict[str, SyntheticClass]) -> dict[str, SyntheticClass]:
+        bad = [k for k in value if k not in VIDEO_CLASSES]
+        if bad:
+            raise ValueError(f"unknown class(es) {bad}; the benchmark's video classes are {list(VIDEO_CLASSES)}")
+        return value
+
+
+class Training(_Model):
+    seeds: list[int] = Field(default_factory=lambda: [0, 1, 2], min_length=1)
+    epochs: int = Field(default=12, ge=1, le=1000)
+    quick_epochs: int = Field(default=2, ge=1, le=100)
+    batch_size: int = Field(default=128, ge=1, le=65_536)
+    learning_rate: float = Field(default=2e-3, gt=0.0, le=1.0)
+    few_shot_fraction: float = Field(default=0.1, gt=0.0, le=1.0)
+    bootstrap: int = Field(default=1000, ge=50, le=100_000)
+
+
+class Sim2RealConfig(_Model):
+    name: str = Field(min_length=1)
+    description: str = ""
+    seed: int = Field(default=0, ge=0)
+    sensors: list[str] = Field(default_factory=lambda: ["ir", "visible", "audio"], min_length=1)
+    visual: VisualProtocol
+    audio: dict[str, Any] = Field(default_factory=dict)
+    training: Training = Field(default_factory=Training)
+
+    @field_validator("sensors")
+    @classmethod
+    def _sensors(cls, value: list[str]) -> list[str]:
+        bad = [s for s in value if s not in ("ir", "visible", "audio")]
+        if bad:
+            raise ValueError(f"unknown sensor(s) {bad}; expected ir, visible, audio")
+        return value
+
+
+def load_config(path: str | Path | None = None) -> tuple[Sim2RealConfig, Path]:
+    """(config, the folder its relative paths are resolved against)."""
+    from scenes.loader import load_validated
+
+    path = Path(path) if path is not None else DEFAULT_CONFIG
+    return load_validated(path, Sim2RealConfig, None, "sim2real config"), path.resolve().parent
