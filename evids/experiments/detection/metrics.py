@@ -148,9 +148,9 @@ def trackeval_mot(gt_root: Path, trackers_root: Path, benchmark: str, split: str
 
 # -------------------------------------------------------------------------------------- Anti-UAV
 def antiuav_state_accuracy(label_file: Path, pred: list[list[float] | None]) -> dict[str, float]:
-    from simulator.formats.antiuav import read_antiuav_labels
+    from simulator.formats.antiuav import read_label_file
 
-    exist, rects = read_antiuav_labels(label_file)
+    exist, rects = read_label_file(label_file)
     return {v: state_accuracy(pred, [r if r is not None else [] for r in rects], exist, variant=v)
             for v in ("plain", "penalised")}
 

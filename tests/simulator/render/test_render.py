@@ -8,7 +8,7 @@ import numpy as np
 from scenes import load_scenario
 from scenes.schema import Hover
 from simulator.dataset.sequence import render_sequence
-from simulator.formats.antiuav import read_antiuav_labels
+from simulator.formats.antiuav import read_label_file
 from simulator.physics.timeline import build_timeline
 from simulator.render.labels import coverage_labels, tight_box
 from simulator.render.renderer import SequenceRenderer
@@ -139,7 +139,7 @@ def test_antiuav_output_has_the_benchmark_field_semantics(tmp_path):
     for flag, rect in zip(data["exist"], data["gt_rect"]):
         assert (flag == 1 and len(rect) == 4 and rect[2] > 0 and rect[3] > 0) or (flag == 0 and rect == [])
     assert 0 in data["exist"] and 1 in data["exist"]
-    exist, rects = read_antiuav_labels(written["antiuav_visible"] / "visible.json")
+    exist, rects = read_label_file(written["antiuav_visible"] / "visible.json")
     assert len(exist) == len(rects) == len(frames)
     native = json.loads((written["native"] / "labels.json").read_text())
     assert [f["thermal"][0]["exist"] for f in native["frames"]] == data["exist"]
