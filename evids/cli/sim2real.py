@@ -29,16 +29,15 @@ def sim2real(
     from evids.experiments.sim2real.config import DEFAULT_CONFIG
     from evids.experiments.sim2real.harness import format_table, run_sim2real
     from scenes.errors import UserInputError
-    from simulator.files import DatasetLock, check_output, write_marker
+    from evids.runfolder import create_run_folder
+    from simulator.files import DatasetLock
 
     if not real.exists():
         raise UserInputError(f"--real: {str(real)!r} does not exist")
     cfg_path = config if config is not None else DEFAULT_CONFIG
     if not Path(cfg_path).is_file():
         raise UserInputError(f"--config: {str(cfg_path)!r} does not exist")
-    check_output(out, inputs=[real, cfg_path], allow_resume=True)
-    out.mkdir(parents=True, exist_ok=True)
-    write_marker(out, "run")
+    create_run_folder(out, inputs=[real, cfg_path])
     with DatasetLock(out, "sim2real"):
         summary = run_sim2real(real, out, config_path=cfg_path, quick=quick, strict=strict, progress=progress,
                                log=typer.echo)
