@@ -30,7 +30,8 @@ class _Model(BaseModel):
 #: a name used as one path component (scene names become output folder names)
 PLAIN_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,127}$"
 PlainName = Annotated[str, Field(pattern=PLAIN_NAME_PATTERN, min_length=1, max_length=128,
-                                 description="letters, digits and ._+- (not starting with . or -): used as a folder name")]
+                                 description="letters, digits and ._+- (not starting with . or -): used as a folder "
+                                             "name")]
 #: the radiometric counts' ceiling must sit this far above the hottest planned temperature
 THERMAL_HEADROOM_K = 20.0
 
@@ -166,7 +167,7 @@ class Atmosphere(_Model):
     - a named AFGL model: that model's sky and path tables (air temperature still sets L(T_air)).
     Humidity: ``relative_humidity`` (0-1) or ``absolute_humidity_g_m3`` (water-vapour density; it
     then sets relative_humidity, and both given must agree). ``visibility_m`` (Koschmieder, 2 % contrast) drives the visible haze and the LWIR aerosol.
-    """
+    """  # noqa: E501 (the model's JSON-schema description: kept as it is)
 
     air_temperature_k: float = Field(default=288.0, gt=200.0, lt=340.0)
     relative_humidity: float = Field(default=0.5, ge=0.0, le=1.0)
@@ -280,7 +281,8 @@ class CameraRig(_Model):
             d = [a - b for a, b in zip(self.look_at_m, self.position_m)]
             length = sum(v * v for v in d) ** 0.5
             if length < 1e-3:
-                raise ValueError(f"look_at_m {list(self.look_at_m)} is the camera position: the camera would see nothing")
+                raise ValueError(f"look_at_m {list(self.look_at_m)} is the camera position: the camera would see "
+                                 "nothing")
             if (d[0] ** 2 + d[1] ** 2) ** 0.5 < 1e-3 * length:
                 raise ValueError(f"look_at_m {list(self.look_at_m)} is straight above/below position_m "
                                  f"{list(self.position_m)}: the camera's up direction is undefined (tilt it slightly)")
@@ -335,7 +337,8 @@ class Scenario(_Model):
         if ceiling < hottest + THERMAL_HEADROOM_K:
             need = (hottest + THERMAL_HEADROOM_K) / counts_max
             raise ValueError(
-                f"camera_rig.thermal.kelvin_per_count {kpc:g} puts the counts' ceiling ({counts_max}) at {ceiling:.1f} K, below the "
+                f"camera_rig.thermal.kelvin_per_count {kpc:g} puts the counts' ceiling ({counts_max}) at {ceiling:.1f} "
+                "K, below the "
                 f"hottest planned temperature {hottest:.1f} K ({where}) + {THERMAL_HEADROOM_K:g} K headroom: every "
                 f"hot pixel would clip; use kelvin_per_count >= {need:.3g}")
         return self

@@ -167,7 +167,8 @@ def is_evids_output(folder: Path) -> bool:
 
 def _is_empty_dir(folder: Path) -> bool:
     """No entries besides evids' own bookkeeping (a lock or marker left by a killed run)."""
-    return folder.is_dir() and not folder.is_symlink() and all(c.name in (LOCK_FILE, MARKER_FILE) for c in folder.iterdir())
+    return folder.is_dir() and not folder.is_symlink() and all(c.name in (LOCK_FILE, MARKER_FILE)
+                                                               for c in folder.iterdir())
 
 
 def _overlaps(a: Path, b: Path) -> bool:

@@ -32,7 +32,8 @@ ALLOWED: dict[str, set[str]] = {
                           "simulator.physics",
                           "simulator.sensors", "simulator.formats", "simulator.dataset", "evids.core",
                           "evids.runfolder", "evids.report"},
-    "evids.cli": {"scenes", "degradations", "simulator.seeding", "simulator.files", "simulator.jobs", "simulator.physics",
+    "evids.cli": {"scenes", "degradations", "simulator.seeding", "simulator.files", "simulator.jobs",
+                  "simulator.physics",
                   "simulator.sensors", "simulator.render", "simulator.formats", "simulator.dataset", "evids.core",
                   "evids.runfolder", "evids.report", "evids.experiments"},
 }
@@ -119,7 +120,8 @@ def test_the_checker_catches_upward_imports():
     """The rules bite: each of these (lazy, relative or plain) is refused; a downward import passes."""
     cases = {
         ("scenes.loader", "scenes/loader.py"): "from evids.errors import UserInputError\n",
-        ("evids.report.html", "evids/report/html.py"): "def f():\n    from evids.experiments.runner import write_json\n",
+        ("evids.report.html",
+         "evids/report/html.py"): "def f():\n    from evids.experiments.runner import write_json\n",
         ("simulator.formats.native", "simulator/formats/native.py"): "from ..render import renderer\n",
         ("simulator.physics.sky", "simulator/physics/sky.py"): "from simulator import dataset\n",
         ("degradations.video", "degradations/video.py"): "import simulator.formats.native\n",

@@ -60,7 +60,8 @@ def evaluate(
 
 def sweep(
     run: Path = typer.Argument(..., help="A run folder written by `evids train`."),
-    only: str = typer.Option(",".join(_STUDIES), "--only", help="Comma-separated subset of: degradation,conflict,gate."),
+    only: str = typer.Option(",".join(_STUDIES), "--only",
+                             help="Comma-separated subset of: degradation,conflict,gate."),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
 ) -> None:
     """Degradation sweep (severity grid per modality), conflict study (scheduled conflict programs)
@@ -83,7 +84,8 @@ def sweep(
             typer.echo(f"{kind}: done")
 
 
-def report(run: Path = typer.Argument(..., help="A run folder after `evids evaluate` (and optionally `sweep`).")) -> None:
+def report(run: Path = typer.Argument(...,
+                                      help="A run folder after `evids evaluate` (and optionally `sweep`).")) -> None:
     """Write RUN/report.html (self-contained, opens offline) and RUN/metrics.json."""
     from evids.report import build_report
 
@@ -97,7 +99,8 @@ def demo(
     quick: bool = typer.Option(False, "--quick", help="Toy scale (about 1-2 minutes) instead of the full demo."),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
     detection: bool = typer.Option(False, "--detection", help="Run the reduced detection experiment (RGB/thermal "
-                                   "detectors, fusion, tracking; budget 15 minutes on 2 cores) into OUT/detection instead."),
+                                   "detectors, fusion, tracking; budget 15 minutes on 2 cores) into OUT/detection "
+                                   "instead."),
 ) -> None:
     """The main job: generate a small seeded RGB + audio + RF scenario set, train sigmoid and
     evidential models, run all ablation conditions, a reduced degradation sweep, the conflict study

@@ -143,7 +143,8 @@ def audit_clips(clips: list[ClipArrays], split: dict[str, list[int]], seed: int 
 
     for name in ("train", "test"):
         if not split.get(name):
-            raise UserInputError(f"split.{name}: the dataset has no {name} clips; the audit needs train and test splits")
+            raise UserInputError(f"split.{name}: the dataset has no {name} clips; the audit needs train and test "
+                                 "splits")
     by_id = {c.clip_id: c for c in clips}
     used = split["train"] + split["test"]
     has_twins = all(clips[i].twin in by_id for i in used if clips[i].label == 0)

@@ -107,7 +107,8 @@ def gmu_logit(models: Models, out: Outputs, clean_fit: bool = False) -> np.ndarr
         return head([torch.from_numpy(e) for e in out.emb]).squeeze(-1).double().numpy()
 
 
-def _train_fusion(module: torch.nn.Module, forward, y: np.ndarray, epochs: int, lr: float, logits_out: bool) -> list[float]:
+def _train_fusion(module: torch.nn.Module, forward, y: np.ndarray, epochs: int, lr: float,
+                  logits_out: bool) -> list[float]:
     target = torch.from_numpy(y.astype(np.float64)).float()
     opt = torch.optim.Adam(module.parameters(), lr=lr)
     losses = []
@@ -267,7 +268,8 @@ def _load_one(cfg: ExperimentConfig, state: dict) -> Models:
     heads = []
     for name in ("late", "gmu", "late_clean", "gmu_clean"):
         with seeded_init(0):
-            mod = LateFusion(3) if name.startswith("late") else GMU([mc.embedding] * 3, mc.gmu_hidden, 1, gate="sigmoid")
+            mod = LateFusion(3) if name.startswith("late") else GMU([mc.embedding] * 3, mc.gmu_hidden, 1,
+                                                                    gate="sigmoid")
         mod.load_state_dict(state[name])
         mod.eval()
         heads.append(mod)

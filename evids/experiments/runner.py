@@ -303,7 +303,8 @@ def compare(ctx: Context, name: str, correct_a: np.ndarray, correct_b: np.ndarra
     elif np.isfinite(perm.mde) and perm.mde < bc.effect_of_interest:
         verdict = f"no difference (MDE {perm.mde * 100:.1f} pp < {bc.effect_of_interest * 100:.1f} pp)"
     else:
-        verdict = f"cannot be decided at this size (MDE {perm.mde * 100:.1f} pp >= {bc.effect_of_interest * 100:.1f} pp)"
+        verdict = (f"cannot be decided at this size (MDE {perm.mde * 100:.1f} pp >= {bc.effect_of_interest * 100:.1f} "
+                   "pp)")
     return {**row, "delta_accuracy": perm.estimate, "ci_low": boot.ci_low, "ci_high": boot.ci_high,
             "p_value": perm.p_value, "p_bootstrap": boot.p_value, "p_permutation": perm.p_value,
             "permutation_exact": perm.exact, "n_permutations": perm.n_permutations, "mde": perm.mde,
@@ -494,7 +495,8 @@ def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
         out = ctx.outputs("clean", 0, run=run) if sev == 0 else ctx.outputs(
             "sweep", seed, run=run, **{stream: [NoiseEntry(name=name, severity=sev)]})
         for rule in (*FUSION_RULES, "unimodal_sigmoid", "unimodal_edl"):
-            cond = Condition(rule, rule, "sweep", {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}.get(rule, rule),
+            cond = Condition(rule, rule, "sweep",
+                             {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}.get(rule, rule),
                              modality if rule.startswith("unimodal") else None)
             pred = predict_condition(cond, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction,
                                      None)

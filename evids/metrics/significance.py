@@ -101,7 +101,7 @@ def null_rejection_rate(n_clusters: int, n_simulations: int, rng: np.random.Gene
     rejections = 0
     for _ in range(n_simulations):
         rows = []
-        for sysname in range(2):
+        for _system in range(2):
             base = rng.random(n_clusters) < accuracy
             copy = rng.random((n_clusters, segments_per_cluster)) < icc
             own = rng.random((n_clusters, segments_per_cluster)) < accuracy

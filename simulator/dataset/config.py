@@ -14,8 +14,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from scenes.loader import GENERATION_DIR
 from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M
+from scenes.loader import GENERATION_DIR
 from scenes.schema import Flyby, Hover, Orbit, Scenario, Target, Waypoints
 from simulator.seeding import rng_for
 
@@ -110,7 +110,8 @@ class Randomisation(_Model):
             if value is not None and value.min <= 0:
                 raise ValueError(f"{name} must be > 0, got [{value.min}, {value.max}]")
         if self.time_of_day_h is not None and (self.time_of_day_h.min < 0 or self.time_of_day_h.max > 24):
-            raise ValueError(f"time_of_day_h must lie in [0, 24], got [{self.time_of_day_h.min}, {self.time_of_day_h.max}]")
+            raise ValueError(f"time_of_day_h must lie in [0, 24], got [{self.time_of_day_h.min}, "
+                             f"{self.time_of_day_h.max}]")
         if self.relative_humidity is not None and (self.relative_humidity.min < 0 or self.relative_humidity.max > 1):
             raise ValueError("relative_humidity must lie in [0, 1]")
         if self.sun_elevation_deg is not None and (self.sun_elevation_deg.min < -90 or self.sun_elevation_deg.max > 90):
@@ -147,7 +148,8 @@ class GenerationConfig(_Model):
     frames: int = Field(default=25, ge=1, le=100_000, description="frames per sequence")
     frame_rate_hz: float | None = Field(default=None, gt=0.0, le=240.0, description="null keeps each scenario's")
     image_size: tuple[Annotated[int, Field(ge=16, le=4096)], Annotated[int, Field(ge=16, le=4096)]] = (320, 256)
-    thermal_image_size: tuple[Annotated[int, Field(ge=16, le=4096)], Annotated[int, Field(ge=16, le=4096)]] | None = None
+    thermal_image_size: tuple[Annotated[int, Field(ge=16, le=4096)],
+                              Annotated[int, Field(ge=16, le=4096)]] | None = None
     spp: int = Field(default=4, ge=1, le=1024)
     splits: Splits = Field(default_factory=Splits)
 
@@ -254,10 +256,12 @@ def _trajectory(kind: str, centre: np.ndarray, speed: float, duration_s: float, 
         climb = float(rng.uniform(-0.1, 0.1))
         velocity = speed * horiz + np.array([0.0, 0.0, climb * speed])
         start = centre - velocity * duration_s / 2
-        return Flyby(start_m=tuple(round(float(v), 3) for v in start), velocity_mps=tuple(round(float(v), 3) for v in velocity))
+        return Flyby(start_m=tuple(round(float(v), 3) for v in start),
+                     velocity_mps=tuple(round(float(v), 3) for v in velocity))
     if kind == "orbit":
         radius = float(rng.uniform(5.0, 25.0))
-        return Orbit(center_m=c, radius_m=round(radius, 3), speed_mps=round(speed, 3), clockwise=bool(rng.random() < 0.5),
+        return Orbit(center_m=c, radius_m=round(radius, 3), speed_mps=round(speed, 3),
+                     clockwise=bool(rng.random() < 0.5),
                      start_angle_deg=round(float(rng.uniform(0, 360)), 3))
     spread = max(2.0, speed * duration_s / 3)
     points = [tuple(round(float(v), 3) for v in centre + rng.uniform(-1, 1, 3) * np.array([spread, spread, spread / 4]))
@@ -265,7 +269,8 @@ def _trajectory(kind: str, centre: np.ndarray, speed: float, duration_s: float, 
     return Waypoints(points_m=points, speed_mps=round(speed, 3))
 
 
-def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_dir: Path | None = None) -> tuple[str, Scenario]:
+def randomised_scenario(config: GenerationConfig, seed: int, index: int,
+                        base_dir: Path | None = None) -> tuple[str, Scenario]:
     """(mixture source, scenario) of sequence ``index``: the chosen scenario with every configured
     range drawn, resized to the config's image size and frame count, named ``seq<index+1>``."""
     source = choose_source(config, seed, index)
@@ -367,7 +372,8 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_di
     off = rig["thermal_offset"]
     draws = rng.random(3)
     if r.camera_yaw_deg is not None:
-        off["yaw_deg"] = round(off["yaw_deg"] + r.camera_yaw_deg.min + (r.camera_yaw_deg.max - r.camera_yaw_deg.min) * draws[0], 5)
+        off["yaw_deg"] = round(off["yaw_deg"] + r.camera_yaw_deg.min + (r.camera_yaw_deg.max - r.camera_yaw_deg.min)
+                               * draws[0], 5)
     if r.camera_pitch_deg is not None:
         off["pitch_deg"] = round(off["pitch_deg"] + r.camera_pitch_deg.min
                                  + (r.camera_pitch_deg.max - r.camera_pitch_deg.min) * draws[1], 5)
@@ -402,7 +408,8 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_di
             while name in names:
                 name += "_"
             names.add(name)
-            targets.append({"name": name, "kind": kind, "size_m": round(size, 3), "trajectory": traj.model_dump(mode="python"),
+            targets.append({"name": name, "kind": kind, "size_m": round(size, 3),
+                            "trajectory": traj.model_dump(mode="python"),
                             "wingbeat_hz": round(float(rng.uniform(2.5, 6.0)), 3) if kind == "bird" else 4.0})
 
     w, h = config.image_size

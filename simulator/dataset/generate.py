@@ -80,7 +80,8 @@ def plan_dataset(config: GenerationConfig, seed: int, base_dir: Path | None = No
     tasks = []
     for index in range(config.sequences):
         source, scenario = randomised_scenario(config, seed, index, base_dir)
-        tasks.append({"index": index, "name": sequence_name(index), "source": source, "seed": sequence_seed(seed, index),
+        tasks.append({"index": index, "name": sequence_name(index), "source": source,
+                      "seed": sequence_seed(seed, index),
                       "split": splits[index], "n_frames": config.frames, "scenario": scenario.model_dump(mode="json")})
     return tasks
 
@@ -146,7 +147,8 @@ def missing_planned_files(seq_dir: Path, n_frames: int) -> list[str]:
 
 
 def _sequence_ok(seq_dir: Path, task: dict[str, Any], recorded_hash: str | None) -> bool:
-    if not (seq_dir / "meta.json").is_file() or verify_hashes(seq_dir) or missing_planned_files(seq_dir, task["n_frames"]):
+    if (not (seq_dir / "meta.json").is_file() or verify_hashes(seq_dir)
+        or missing_planned_files(seq_dir, task["n_frames"])):
         return False
     try:
         meta = json.loads((seq_dir / "meta.json").read_text())
@@ -199,7 +201,8 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
         stages = PassTimes()
         wall0 = time.perf_counter()
         notes: list[str] = []
-        written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False,
+        written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"],
+                                  progress=False,
                                   times=stages, overwrite=True, notes=notes, **writer)
         stages.seconds["setup + metadata (rest)"] = time.perf_counter() - wall0 - sum(stages.seconds.values())
         return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
@@ -271,7 +274,8 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
     if bad:
         raise UserInputError(f"--format: unknown format(s) {bad}; valid: native, {', '.join(EXPORT_FORMATS)}")
     config = load_generation_config(config_or_name)
-    base_dir = Path(config_or_name).resolve().parent if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file() else None
+    base_dir = (Path(config_or_name).resolve().parent if isinstance(config_or_name, (str, Path))
+                and Path(config_or_name).is_file() else None)
     updates: dict[str, Any] = {}
     if sequences is not None:
         updates["sequences"] = sequences
@@ -285,9 +289,11 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
     identity = dataset_identity(config, seed, tasks)
 
     out = Path(out_dir)
-    config_file = [Path(config_or_name)] if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file() else []
+    config_file = ([Path(config_or_name)] if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file()
+                   else [])
     if out.is_dir() and not (out / LOCK_FILE).exists() and any(out.iterdir()) and not (out / MANIFEST).is_file():
-        raise UserInputError(f"output folder {str(out)!r} is not empty and holds no evids dataset; choose another --out")
+        raise UserInputError(f"output folder {str(out)!r} is not empty and holds no evids dataset; choose another "
+                             "--out")
     check_output(out, inputs=config_file, overwrite=overwrite, allow_resume=True)
     lock = DatasetLock(out, "generate").acquire()
     try:
@@ -323,7 +329,8 @@ def _generate_locked(out: Path, config: GenerationConfig, seed: int, tasks: list
                     shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
         else:
             entries = old.get("sequences", [])
-            recorded = {s["name"]: s["content_sha256"] for s in entries if isinstance(s, dict) and s.get("content_sha256")}
+            recorded = {s["name"]: s["content_sha256"] for s in entries if isinstance(s, dict)
+                        and s.get("content_sha256")}
     out.mkdir(parents=True, exist_ok=True)
     seq_root = out / SEQUENCES_DIR
     seq_root.mkdir(exist_ok=True)

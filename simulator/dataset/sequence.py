@@ -169,7 +169,8 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                 TimeRemainingColumn,
             )
 
-            bar = Progress(TextColumn(f"render {scenario.name}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+            bar = Progress(TextColumn(f"render {scenario.name}"), BarColumn(),
+                           TextColumn("{task.completed}/{task.total}"),
                            TimeRemainingColumn(), transient=True)
             task = bar.add_task("frames", total=timeline.n_frames)
             bar.start()
@@ -184,7 +185,8 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                 t0 = times.add("camera model", t0)
                 frames.append({
                     "index": i, "time_s": round(float(timeline.times_s[i]), 6),
-                    "rgb": coverage_labels(timeline, i, "rgb", buffers.coverage["rgb"], rgb_cam.width_px, rgb_cam.height_px),
+                    "rgb": coverage_labels(timeline, i, "rgb", buffers.coverage["rgb"], rgb_cam.width_px,
+                                           rgb_cam.height_px),
                     "thermal": coverage_labels(timeline, i, "thermal", buffers.coverage["thermal"], th_cam.width_px,
                                                th_cam.height_px, netd),
                 })

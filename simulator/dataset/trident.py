@@ -43,13 +43,13 @@ from simulator.formats.trident import (
     mfcc_segments,
     write_clip,
 )
+from simulator.jobs import run_jobs
 from simulator.physics.acoustics import (
     AUDIO_SAMPLE_RATE_HZ,
     Ambience,
     band_level_db,
     synthesize_audio,
 )
-from simulator.jobs import run_jobs
 from simulator.physics.rf import RFConfig, spectrogram_image, synthesize_rf
 from simulator.seeding import rng_for
 
@@ -330,7 +330,8 @@ def draw_scene(dist: SceneDistribution, config: TridentConfig, seed: int, index:
     base = {"name": name, "duration_s": config.clip_duration_s, "frame_rate_hz": float(config.video_fps),
             "sky": sky, "atmosphere": atmosphere,
             "camera_rig": {"position_m": cam.tolist(), "look_at_m": np.round(centre, 3).tolist(),
-                           "rgb": {"width_px": config.video_px, "height_px": config.video_px, "hfov_deg": round(hfov, 4)},
+                           "rgb": {"width_px": config.video_px, "height_px": config.video_px,
+                                   "hfov_deg": round(hfov, 4)},
                            "thermal": {"width_px": 16, "height_px": 16, "hfov_deg": round(hfov, 4)}}}
     drone_s = Scenario.model_validate({**base, "targets": [*confusers, drone]})
     twin_s = Scenario.model_validate({**base, "targets": confusers})

@@ -304,7 +304,8 @@ def find_sequences(root: Path) -> list[Path]:
     for name in LABEL_FILES:
         for label in root.rglob(name):
             folder = label.parent
-            if folder.name.endswith("_visible") and (folder.parent / folder.name[: -len("_visible")] / "IR_label.json").is_file():
+            if folder.name.endswith("_visible") and (folder.parent / folder.name[: -len("_visible")]
+                                                     / "IR_label.json").is_file():
                 continue
             found.add(folder)
     return sorted(found)

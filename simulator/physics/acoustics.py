@@ -70,7 +70,8 @@ def _check_nonnegative(name: str, values: np.ndarray) -> None:
 def check_sample_rate(sample_rate_hz: float, highest_band_hz: float = AUDIO_BAND_HZ) -> None:
     """Reject a sample rate that cannot carry the highest synthesised band (Nyquist)."""
     if not sample_rate_hz >= 2.0 * highest_band_hz:
-        raise ValueError(f"sample_rate_hz must be >= 2 x highest band ({2 * highest_band_hz:.0f} Hz), got {sample_rate_hz}")
+        raise ValueError(f"sample_rate_hz must be >= 2 x highest band ({2 * highest_band_hz:.0f} Hz), got "
+                         f"{sample_rate_hz}")
 
 
 def db_spl_to_pa(level_db: float) -> float:
@@ -123,7 +124,8 @@ def a_weighting_db(frequency_hz: np.ndarray | float) -> np.ndarray:
     """IEC 61672-1 A-weighting (dB): 20 lg R_A(f) + 2.00, R_A = 12194^2 f^4 / ((f^2 + 20.6^2)
     sqrt((f^2 + 107.7^2)(f^2 + 737.9^2)) (f^2 + 12194^2))."""
     f2 = np.asarray(frequency_hz, dtype=np.float64) ** 2
-    ra = 12194.0 ** 2 * f2 ** 2 / ((f2 + 20.6 ** 2) * np.sqrt((f2 + 107.7 ** 2) * (f2 + 737.9 ** 2)) * (f2 + 12194.0 ** 2))
+    ra = 12194.0 ** 2 * f2 ** 2 / ((f2 + 20.6 ** 2) * np.sqrt((f2 + 107.7 ** 2) * (f2 + 737.9 ** 2))
+                                   * (f2 + 12194.0 ** 2))
     return 20.0 * np.log10(np.maximum(ra, 1e-30)) + 2.00
 
 
@@ -201,7 +203,8 @@ def iso9613_ground_attenuation_db(source_height_m: np.ndarray | float, receiver_
     near = 1.0 - np.exp(-dp / 50.0)
 
     def region(h):
-        a = 1.5 + 3.0 * np.exp(-0.12 * (h - 5.0) ** 2) * near + 5.7 * np.exp(-0.09 * h ** 2) * (1 - np.exp(-2.8e-6 * dp ** 2))
+        a = (1.5 + 3.0 * np.exp(-0.12 * (h - 5.0) ** 2) * near + 5.7 * np.exp(-0.09 * h ** 2)
+             * (1 - np.exp(-2.8e-6 * dp ** 2)))
         b = 1.5 + 8.6 * np.exp(-0.09 * h ** 2) * near
         c = 1.5 + 14.0 * np.exp(-0.46 * h ** 2) * near
         d = 1.5 + 5.0 * np.exp(-0.9 * h ** 2) * near
@@ -722,7 +725,8 @@ def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, d
                                               atm.relative_humidity, rng, wingbeats.get(track.name, 4.0),
                                               ground_factor=ground_factor, sound_power_db=power)
         if track.kind in DRONE_KINDS:
-            scene.sound_power_dba[track.name] = power if power is not None else sound_power_dba(track.kind, track.size_m)
+            scene.sound_power_dba[track.name] = (power if power is not None
+                                                 else sound_power_dba(track.kind, track.size_m))
         mix += received
         scene.targets_pa[track.name] = received.astype(np.float32)
         scene.target_range_m[track.name] = range_m.astype(np.float32)

@@ -192,7 +192,8 @@ class RFCapture:
     link_rx_dbm: np.ndarray = field(default_factory=lambda: np.zeros(0))        # (S,) strongest drone link budget
     control_snr_db: np.ndarray = field(default_factory=lambda: np.zeros(0))     # (S,) best control burst in capture
     video_snr_db: np.ndarray = field(default_factory=lambda: np.zeros(0))       # (S,) best video burst in capture
-    realised_snr_db: np.ndarray = field(default_factory=lambda: np.zeros(0))    # (S,) link power while on / noise, full band
+    # (S,) link power while on / noise, full band
+    realised_snr_db: np.ndarray = field(default_factory=lambda: np.zeros(0))
     drone_range_m: np.ndarray = field(default_factory=lambda: np.zeros(0))      # (S,)
     link_snr_db: dict[str, np.ndarray] = field(default_factory=dict)        # "<target>/<link>" -> (S,) best in-band SNR
     bursts_per_capture: dict[str, np.ndarray] = field(default_factory=dict)  # "<target>/<link>" -> (S,) int
@@ -244,7 +245,8 @@ def spectrogram_dbm(iq: np.ndarray, sample_rate_hz: float, px: int = SPECTROGRAM
     window = np.hanning(frame + 2)[1:-1].astype(np.float32)
     frames = x[:, : frame * px].reshape(x.shape[0], px, frame) * window
     spec = np.abs(sfft.fftshift(sfft.fft(frames, n=nfft, axis=-1), axes=-1)) ** 2
-    pooled = spec.reshape(x.shape[0], px, px, nfft // px).sum(-1) / (nfft * float(np.sum(window.astype(np.float64) ** 2)))
+    pooled = spec.reshape(x.shape[0], px, px, nfft // px).sum(-1) / (nfft
+                                                                     * float(np.sum(window.astype(np.float64) ** 2)))
     return 10 * np.log10(np.maximum(pooled, 1e-30)).transpose(0, 2, 1)[:, ::-1, :].astype(np.float32)
 
 
@@ -436,7 +438,8 @@ def _background_fhss(cfg: RFConfig, preset: rf_links.FhssPreset, rx_dbm: float, 
     amp = np.sqrt(10 ** (rx_dbm / 10))
     for s, idx in enumerate(rf_links.bursts_in_windows(sched, starts, cfg.capture_s)):
         for b in idx[visible[idx]]:
-            _write_burst(iq[s], cfg, preset, rng, starts[s], sched.start_s[b], sched.duration_s[b], sched.centre_hz[b], amp)
+            _write_burst(iq[s], cfg, preset, rng, starts[s], sched.start_s[b], sched.duration_s[b], sched.centre_hz[b],
+                         amp)
 
 
 def _fhss_link(cfg: RFConfig, preset: rf_links.FhssPreset, geo: _Geometry, starts: np.ndarray, duration_s: float,

@@ -87,7 +87,8 @@ def _centres(bandwidth_hz: float, step_hz: float) -> tuple[float, ...]:
     return tuple(float(c) for c in np.arange(lo, hi + 1.0, step_hz))
 
 
-_ELRS = {"role": "control", "first_channel_hz": 2400.4e6, "channel_spacing_hz": 1e6, "n_channels": 80, "modulation": "lora",
+_ELRS = {"role": "control", "first_channel_hz": 2400.4e6, "channel_spacing_hz": 1e6, "n_channels": 80,
+         "modulation": "lora",
              "occupied_bandwidth_hz": 812.5e3, "packets_per_hop": 4, "tx_power_dbm": 20.0}
 
 LINK_PRESETS: dict[str, LinkPreset] = {

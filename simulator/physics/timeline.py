@@ -210,7 +210,8 @@ def _camera_tracks(scenario: Scenario, targets: list[TargetTrack], n_frames: int
     t_origin = origin + cam_to_world @ np.asarray(off.translation_m)
     t_rot = cam_to_world @ r_off
     th = rig.thermal
-    cams["thermal"] = CameraTrack("thermal", t_origin, -t_rot[:, :, 2], t_rot[:, :, 1], th.width_px, th.height_px, th.hfov_deg)
+    cams["thermal"] = CameraTrack("thermal", t_origin, -t_rot[:, :, 2], t_rot[:, :, 1], th.width_px, th.height_px,
+                                  th.hfov_deg)
     return cams
 
 
@@ -233,7 +234,8 @@ def build_timeline(scenario: Scenario, seed: int, n_frames: int | None = None) -
         vel = (after - before) / (2 * h)
         acc = (after - 2 * pos + before) / h ** 2
         if count > 2:
-            acc = np.stack([np.convolve(np.pad(acc[:, k], 2, mode="edge"), np.ones(5) / 5, mode="valid") for k in range(3)], -1)
+            acc = np.stack([np.convolve(np.pad(acc[:, k], 2, mode="edge"), np.ones(5) / 5, mode="valid")
+                            for k in range(3)], -1)
         rotation, thrust_ratio = _attitude(target.kind, vel, acc)
         n_rotors = _rotor_count(target.kind)
         hover = rotor_hover_rpm(target.kind, target.size_m)

@@ -185,7 +185,8 @@ class SkyMaps:
     def thermal(self) -> np.ndarray:
         """LWIR band radiance map (computed only when a thermal camera renders)."""
         rot = np.ascontiguousarray(np.array(self.to_world.matrix, dtype=np.float64)[:3, :3])
-        return self.thermal_sky.radiance(_env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())).astype(np.float32)
+        directions = _env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())
+        return self.thermal_sky.radiance(directions).astype(np.float32)
 
     @cached_property
     def reflected_lwir(self) -> float:
@@ -236,7 +237,7 @@ class _View:
         self._key_target = np.array([k[1] for k in self.keys])
         self._key_role = [k[2] for k in self.keys]
         faces, offset = [], 0
-        for (slot, ti, role), nv in zip(self.keys, vert_counts):
+        for (_slot, ti, role), nv in zip(self.keys, vert_counts):
             faces.append(owner.geometry[ti].faces(role) + offset)
             offset += nv
         # one zero-area face spanning a fixed box (never hit) pins the scene's bounding sphere, which
@@ -269,7 +270,8 @@ class _View:
             env = np.repeat(owner.sky.thermal[..., None], 3, axis=-1)
         scene["sky"] = {"type": "envmap", "bitmap": mi.Bitmap(env), "to_world": owner.sky.to_world}
         props = mi.Properties()
-        props["bsdf"] = mi.load_dict({"type": "diffuse", "reflectance": {"type": "mesh_attribute", "name": "face_albedo"}})
+        props["bsdf"] = mi.load_dict({"type": "diffuse",
+                                      "reflectance": {"type": "mesh_attribute", "name": "face_albedo"}})
         # the airlight/thermal emission is seen directly; it is not a light worth sampling (weight 0)
         props["emitter"] = mi.load_dict({"type": "area", "sampling_weight": 0.0,
                                          "radiance": {"type": "mesh_attribute", "name": "face_emission"}})
@@ -314,8 +316,10 @@ class _View:
                 emission[k] = owner.thermal_radiance(ti, role, frame, "thermal")
         self.params["targets.vertex_positions"] = mi.Float(self._vertices(slot_frames).ravel())
         pin = np.zeros((1, 3), np.float32)  # the bounding face's attributes (never hit)
-        self.params["targets.face_albedo"] = mi.Float(np.vstack([np.repeat(albedo, self.face_counts, axis=0), pin]).ravel())
-        self.params["targets.face_emission"] = mi.Float(np.vstack([np.repeat(emission, self.face_counts, axis=0), pin]).ravel())
+        self.params["targets.face_albedo"] = mi.Float(np.vstack([np.repeat(albedo, self.face_counts, axis=0),
+                                                                 pin]).ravel())
+        self.params["targets.face_emission"] = mi.Float(np.vstack([np.repeat(emission, self.face_counts, axis=0),
+                                                                   pin]).ravel())
         self.params.update()
         self._slot_frames = list(slot_frames)
         return tiles
@@ -596,7 +600,8 @@ class SequenceRenderer:
                 if self.boxes[view.which][frame][ti] is None:
                     continue
                 tile = tiles[(slot, ti)]
-                image[tile.y0:tile.y0 + tile.height, tile.x0:tile.x0 + tile.width] = radiance[slot * plan.tiles_per_frame + ti]
+                image[tile.y0:tile.y0 + tile.height, tile.x0:tile.x0
+                      + tile.width] = radiance[slot * plan.tiles_per_frame + ti]
         coverage, mask = None, None
         if self.labels:
             coverage, mask = self._coverage_records(view, frame, slot, cover)

@@ -58,13 +58,15 @@ CASES = [
     ("a parent of the current folder", lambda t: (Path(".."), []), True, True, "current folder"),
     ("the root", lambda t: (Path("/"), []), True, True, "current folder or one of its parents|root"),
     ("equal to the input", lambda t: (_evids_folder(t / "d"), [t / "d"]), True, False, "is the input"),
-    ("ancestor of the input", lambda t: (t / "d", [_evids_folder(t / "d" / "sequences")]), True, False, "contains the input"),
+    ("ancestor of the input", lambda t: (t / "d", [_evids_folder(t / "d" / "sequences")]), True, False,
+     "contains the input"),
     ("descendant of the input", lambda t: (t / "d" / "sequences" / "x", [_evids_folder(t / "d" / "sequences")]), True,
      False, "inside the input"),
     ("a file", lambda t: ((t / "f").write_text("x") and t / "f", []), True, False, "not a folder"),
     ("a symlink to a user folder", lambda t: ((t / "l").symlink_to(_user_folder(t / "u")) or t / "l", []), True, False,
      "symbolic link"),
-    ("only a stale lock inside", lambda t: ((t / "s").mkdir() or (t / "s" / LOCK_FILE).write_text("{}") and t / "s", []),
+    ("only a stale lock inside",
+     lambda t: ((t / "s").mkdir() or (t / "s" / LOCK_FILE).write_text("{}") and t / "s", []),
      False, False, None),
 ]
 

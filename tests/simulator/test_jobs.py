@@ -94,7 +94,8 @@ def test_pool_calls_run_in_other_processes_and_inline_in_this_one():
 
 def test_progress_callback_sees_every_result():
     seen = []
-    run_jobs(_square_slowly, [(x,) for x in range(5)], workers=2, start="fork", progress=lambda i, r: seen.append((i, r)))
+    run_jobs(_square_slowly, [(x,) for x in range(5)], workers=2, start="fork", progress=lambda i,
+             r: seen.append((i, r)))
     assert sorted(seen) == [(x, x * x) for x in range(5)]
 
 

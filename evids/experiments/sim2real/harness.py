@@ -131,7 +131,8 @@ def write_sheets(samples: list[FrameSample], clips: list[ClipSummary], sensor: s
         rows = []
         for cls in classes:
             for domain, half in (("real", "calibration"), ("synthetic", "synthetic")):
-                pool = [s for s in samples if s.sensor == sensor and s.cls == cls and s.domain == domain and s.half == half]
+                pool = [s for s in samples if s.sensor == sensor and s.cls == cls and s.domain == domain
+                        and s.half == half]
                 imgs = [s.crop for s in pool if s.crop.size] if kind == "crops" else \
                     [s.background for s in pool if s.background is not None]
                 rows.append(_label(_tile(_pick(imgs, 12, rng), 64, 12), f"{cls} {domain}"))
@@ -227,7 +228,8 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         del res
     summary["timings_s"]["synthetic_render"] = time.time() - t
     t = time.time()
-    for _, (got, summ) in forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress else None):
+    for _, (got, summ) in forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
+                                     else None):
         samples += got
         clip_summaries.append(summ)
     summary["timings_s"]["synthetic_samples"] = time.time() - t
@@ -252,7 +254,8 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         bar = _bar(f"{sensor}: crop classifiers", n_jobs) if progress else None
         cond = classify.evaluate_conditions(sets, test, len(classes), seeds=seeds, epochs=epochs,
                                             batch_size=tr.batch_size, learning_rate=tr.learning_rate,
-                                            bootstrap=min(tr.bootstrap, 200) if quick else tr.bootstrap, rng_seed=cfg.seed,
+                                            bootstrap=min(tr.bootstrap, 200) if quick else tr.bootstrap,
+                                            rng_seed=cfg.seed,
                                             progress=(lambda: bar[0].advance(bar[1])) if bar else None)
         if bar:
             bar[0].stop()
@@ -262,12 +265,14 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                                                       classify.crop_set(synthetic, classes, kind),
                                                       seeds=seeds, epochs=epochs, batch_size=tr.batch_size,
                                                       learning_rate=tr.learning_rate,
-                                                      rng=rng_for(cfg.seed, "sim2real", 8, VISUAL_SENSORS.index(sensor)))
+                                                      rng=rng_for(cfg.seed, "sim2real", 8,
+                                                                  VISUAL_SENSORS.index(sensor)))
         files = write_sheets(s_samples, [c for c in clip_summaries if c.sensor == sensor], sensor, classes, sheets,
                              rng_for(cfg.seed, "sim2real", 9, VISUAL_SENSORS.index(sensor)))
         summary["sensors"][sensor] = {
             "classes": classes,
-            "n_clips": {"real_calibration": len({s.clip for s in real_cal}), "real_evaluation": len({s.clip for s in real_eval}),
+            "n_clips": {"real_calibration": len({s.clip for s in real_cal}),
+                        "real_evaluation": len({s.clip for s in real_eval}),
                         "synthetic": len({s.clip for s in synthetic})},
             "statistics": statistics_table(s_samples, clip_summaries, sensor, classes),
             "classifier": cond, "domain_classifier": domain, "sheets": files,
@@ -319,17 +324,20 @@ def format_table(summary: dict[str, Any]) -> str:
         lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({c['n_test_clips']} clips, "
                      f"{c['n_test_crops']} crops; chance {1 / len(res['classes']):.2f})")
         for name, r in c["conditions"].items():
-            lines.append(f"  {classify.CONDITION_LABELS[name]:<40} {r['estimate']:.3f} [{r['ci_low']:.3f}, {r['ci_high']:.3f}]")
+            lines.append(f"  {classify.CONDITION_LABELS[name]:<40} {r['estimate']:.3f} [{r['ci_low']:.3f}, "
+                         f"{r['ci_high']:.3f}]")
         for key, label in (("ratio_b_over_a", "ratio (b)/(a)"), ("gain_c_minus_a", "(c) - (a)"),
                            ("gain_dplus_minus_d", "(d+) - (d)")):
             r = c.get(key)
             if r:
                 f = "{:.3f}" if key == "ratio_b_over_a" else "{:+.3f}"
-                lines.append(f"  {label:<40} {f.format(r['estimate'])} [{f.format(r['ci_low'])}, {f.format(r['ci_high'])}]"
+                lines.append(f"  {label:<40} {f.format(r['estimate'])} [{f.format(r['ci_low'])}, "
+                             f"{f.format(r['ci_high'])}]"
                              f" MDE {r['mde']:.3f}")
         for kind, d in res["domain_classifier"].items():
             lines.append(f"  domain classifier, {kind + 's':<23} {d['accuracy']:.3f} (0.5 = indistinguishable)")
-        inside = [(cls, st) for cls, rows in res["statistics"].items() for st, row in rows.items() if row["inside"] is not None]
+        inside = [(cls, st) for cls, rows in res["statistics"].items() for st, row in rows.items()
+                  if row["inside"] is not None]
         n_in = sum(res["statistics"][cls][st]["inside"] for cls, st in inside)
         lines.append(f"  statistics: synthetic median inside the real IQR for {n_in} of {len(inside)}")
     return "\n".join(lines)

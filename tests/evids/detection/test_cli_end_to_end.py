@@ -31,7 +31,8 @@ def _fake_dataset(root: Path, thermal: bool, splits: tuple[str, ...]) -> Path:
         (d / "meta.json").write_text(json.dumps({"cameras": cams, "n_frames": 2}))
         seqs.append({"name": name, "index": i, "split": split, "source": "det_control_a", "seed": 1, "n_frames": 2,
                      "content_sha256": "0"})
-    (root / "manifest.json").write_text(json.dumps({"format": "evids-native-dataset", "complete": True, "sequences": seqs}))
+    (root / "manifest.json").write_text(json.dumps({"format": "evids-native-dataset", "complete": True,
+                                                    "sequences": seqs}))
     return root
 
 

@@ -100,7 +100,9 @@ def test_registered_cameras_agree_within_one_pixel_after_scaling():
     scenario = load_scenario("clear_day_quad")
     rig = scenario.camera_rig
     near = scenario.targets[0].model_copy(update={"trajectory": Hover(center_m=(0.8, 40, 11.6), drift_m=0.1)})
-    scenario = scenario.model_copy(update={"targets": [near], "camera_rig": rig.model_copy(update={"track_target": None, "look_at_m": (0, 40, 11)})})
+    scenario = scenario.model_copy(update={"targets": [near],
+                                           "camera_rig": rig.model_copy(update={"track_target": None,
+                                                                                "look_at_m": (0, 40, 11)})})
     scenario = shrink(scenario, 320, 256, spp=2, thermal_width_px=160, thermal_height_px=128)
     _, out = _render_frames(scenario, 1, [0])
     fb = out[0]
