@@ -4,7 +4,11 @@ Sources and reasoning in docs/PHYSICS.md ("Thermal part defaults"): LWIR emissiv
 materials (plastics and painted or carbon composites ~0.9-0.95, black-anodised aluminium motor bells
 ~0.8-0.9, so motors emit rather than mirror the sky); motor temperature rise from infrared
 thermography of hovering quadcopters (37-44 C motors, i.e. ~+15-20 K over ambient, at no payload:
-Processes 2025, 13(10), 3034); motors and battery are the hottest parts.
+Processes 2025, 13(10), 3034); motors and battery are the hottest parts. Birds: infrared
+thermography of starlings flying in a wind tunnel (Ward et al. 1999, J. Exp. Biol. 202:1589-1602):
+head +6.0 K, ventral brachial areas +5.3 K, flight feathers +2.2-2.5 K over air; feathers insulate,
+so a bird is near ambient with a warm head and body. Airliner engines: the nacelle role carries the
+side-view area average of the hot exhaust nozzle and the near-ambient nacelle skin (docs/PHYSICS.md).
 """
 from __future__ import annotations
 
@@ -29,7 +33,7 @@ _OFFSETS_K: dict[str, dict[str, float]] = {
     "quadcopter": {"body": 5.0, "arm": 2.0, "motor": 20.0, "prop": 0.5, "battery": 12.0, "camera": 6.0},
     "hexacopter": {"body": 5.0, "arm": 2.0, "motor": 22.0, "prop": 0.5, "battery": 14.0, "camera": 6.0},
     "fixed_wing": {"fuselage": 4.0, "wing": 1.0, "tail": 1.0, "motor": 30.0, "prop": 1.0, "body": 4.0},
-    "bird": {"body": 8.0, "head": 10.0, "feather": 2.0, "wing": 2.0},
+    "bird": {"body": 4.0, "head": 6.0, "feather": 2.2, "wing": 2.3},
     "airliner": {"fuselage": -2.0, "wing": -3.0, "tail": -3.0, "engine": 80.0},
 }
 

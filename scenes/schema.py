@@ -221,12 +221,21 @@ class RgbCamera(CameraIntrinsics):
     native_pixel_pitch_um: float = Field(default=1.55, gt=0.5, le=30.0)
     f_number: float = Field(default=2.8, ge=0.7, le=32.0)
     defocus_blur_um: float = Field(default=0.0, ge=0.0, le=500.0, description="blur-circle diameter")
+    blur_sigma_px: float = Field(default=0.0, ge=0.0, le=10.0,
+                                 description="extra Gaussian blur, rms in output pixels (aberrations, OLPF, rescaling)")
     full_well_e: float = Field(default=4600.0, gt=100.0, description="per native pixel")
     read_noise_e: float = Field(default=2.5, ge=0.0, description="per native pixel, rms")
     quantum_efficiency: float = Field(default=0.5, gt=0.0, le=1.0)
     exposure_time_s: float | None = Field(default=None, gt=0.0, le=1.0)
     max_gain: float = Field(default=16.0, ge=1.0, le=1024.0)
     adc_bits: Literal[8, 10, 12, 14, 16] = 12
+    tone: Literal["srgb", "camcorder"] = Field(
+        default="srgb", description="srgb: fixed exposure, sRGB curve; camcorder: whole-frame auto-exposure + "
+                                    "BT.709 curve with a highlight knee (simulator/sensors/agc.py)")
+    ae_key: float = Field(default=0.25, gt=0.0, le=1.0, description="camcorder: metered mean linear luminance target")
+    ae_damping: float = Field(default=0.9, ge=0.0, lt=1.0, description="camcorder: per-frame memory of the exposure (log)")
+    knee_point: float = Field(default=0.85, gt=0.0, le=1.0, description="camcorder: output level where the knee starts")
+    knee_slope: float = Field(default=0.25, gt=0.0, le=1.0, description="camcorder: slope factor above the knee")
 
 
 class ThermalCamera(CameraIntrinsics):
@@ -240,11 +249,24 @@ class ThermalCamera(CameraIntrinsics):
     f_number: float = Field(default=1.0, ge=0.5, le=8.0)
     wavelength_um: float = Field(default=10.0, ge=7.0, le=15.0, description="PSF wavelength")
     defocus_blur_um: float = Field(default=0.0, ge=0.0, le=1000.0, description="blur-circle diameter")
+    blur_sigma_px: float = Field(default=0.0, ge=0.0, le=10.0,
+                                 description="extra Gaussian blur, rms in pixels (aberrations, crosstalk)")
     time_constant_s: float = Field(default=0.010, ge=0.0, le=0.1)
     fpn_column_offset_k: float = Field(default=0.02, ge=0.0, le=10.0, description="rms per-column offset")
     fpn_column_gain: float = Field(default=0.005, ge=0.0, le=0.5, description="rms per-column gain error")
     adc_bits: Literal[14, 16] = 16
-    agc: Literal["minmax", "percentile", "histogram"] = "minmax"
+    agc: Literal["minmax", "percentile", "histogram", "plateau"] = "minmax"
+    agc_bin_k: float = Field(default=0.05, gt=0.0, le=5.0, description="plateau: histogram bin width")
+    agc_plateau_fraction: float = Field(default=0.01, gt=0.0, le=1.0,
+                                        description="plateau: per-bin cap, fraction of the frame's pixels")
+    agc_linear_fraction: float = Field(default=0.2, ge=0.0, le=1.0, description="plateau: share of the linear map")
+    agc_tail_fraction: float = Field(default=0.005, ge=0.0, lt=0.5, description="plateau: pixels ignored at each end")
+    agc_min_span_k: float = Field(default=4.0, gt=0.0, le=200.0,
+                                  description="plateau: a scene narrower than this is not stretched to full range (max gain)")
+    agc_damping: float = Field(default=0.9, ge=0.0, lt=1.0, description="plateau: per-frame memory of the transfer")
+    agc_base_sigma_px: float = Field(default=0.0, ge=0.0, le=200.0,
+                                     description="plateau: local contrast, Gaussian base (0 = off)")
+    agc_base_gain: float = Field(default=1.0, ge=0.0, le=1.0, description="plateau: gain of the base about its mean")
 
     @model_validator(mode="after")
     def _counts_cover_scene(self) -> "ThermalCamera":
@@ -264,6 +286,26 @@ class CameraOffset(_Model):
     roll_deg: float = 0.0
 
 
+class Recording(_Model):
+    """H.264 recording chain after the camera model (simulator/sensors/recording.py): the 8-bit views
+    (rgb, thermal_agc) pass through a libx264 encode + decode; counts and kelvin stay untouched.
+    Rate control: ``crf`` (constant rate factor; 28 if neither is given) or ``bit_rate_bps``."""
+
+    codec: Literal["h264"] = "h264"
+    crf: float | None = Field(default=None, ge=0.0, le=51.0)
+    bit_rate_bps: int | None = Field(default=None, ge=1, le=10 ** 9)
+    gop_frames: int = Field(default=128, ge=1, le=100000, description="frames from one key frame to the next")
+    preset: Literal["ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow"] = "veryfast"
+    video_range: Literal["limited", "full"] = Field(
+        default="limited", description="grey view on video levels (luma 16-235, as the benchmark's IR clips) or 0-255")
+
+    @model_validator(mode="after")
+    def _one_rate_control(self) -> "Recording":
+        if self.crf is not None and self.bit_rate_bps is not None:
+            raise ValueError("give crf or bit_rate_bps, not both")
+        return self
+
+
 class CameraRig(_Model):
     position_m: Vec3 = (0.0, 0.0, 1.5)
     look_at_m: Vec3 | None = None
@@ -272,6 +314,7 @@ class CameraRig(_Model):
     thermal: ThermalCamera = Field(default_factory=ThermalCamera)
     thermal_offset: CameraOffset = Field(default_factory=CameraOffset)
     sensor: Literal["camera", "ideal"] = Field(default="camera", description="ideal = no camera model")
+    recording: Recording | None = Field(default=None, description="H.264 recording chain (None = lossless frames)")
 
     @model_validator(mode="after")
     def _pointing(self) -> "CameraRig":

@@ -63,6 +63,16 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
             (("ratio_b_over_a", "ratio (b) / (a)"), ("gain_c_minus_a", "(c) - (a)"),
              ("gain_dplus_minus_d", "(d+) - (d)"))]
     parts.append(_table(["comparison", "estimate [95 % CI] (MDE: smallest difference this test detects)"], rows))
+    det = res.get("detector", {})
+    if det.get("conditions"):
+        rows = [[f"trained on {k}", f"{v['ap50']:.3f}" if "ap50" in v else html.escape(v.get("note", "")),
+                 ", ".join(f"{x:.3f}" for x in v.get("per_seed", [])), str(v.get("train_clips", ""))]
+                for k, v in det["conditions"].items()]
+        ratio = det.get("ratio_synthetic_over_real")
+        parts.append(_table(["E1/E3 detector (sigmoid head)", "AP50 on the real evaluation half (pycocotools)", "per seed",
+                             "training clips"], rows)
+                     + f"<p class='note'>{det['n_test_frames']} evaluation frames of {det['n_test_clips']} clips, "
+                     f"{det['n_test_boxes']} boxes (all classes are 'target').{f' Ratio synthetic / real: {ratio:.3f}.' if ratio else ''}</p>")
     d = res["domain_classifier"]
     parts.append(_table(["domain classifier (real calibration half vs synthetic, split by clip)",
                          "held-out balanced accuracy"],

@@ -10,9 +10,11 @@ Per frame and camera, in this order (all linear stages commute; noise comes last
 3. thermal: first-order bolometer lag y_n = a x_n + (1 - a) y_(n-1), a = 1 - exp(-dt/tau)
    (the in-frame part is step 1); brightness temperature; per-column fixed-pattern gain/offset
    about the NUC reference (air temperature); temporal NETD noise; 14/16-bit radiometric counts;
-   8-bit AGC view;
+   8-bit AGC view (``agc: plateau`` = the FLIR cores' plateau equalisation over the whole frame,
+   damped over frames: simulator/sensors/agc.py);
 4. RGB: photo-electrons from the physical radiance (auto exposure capped at one frame period, then
-   gain up to max_gain), shot (Poisson) and read noise, ADC quantisation, sRGB 8-bit.
+   gain up to max_gain), shot (Poisson) and read noise, ADC quantisation, sRGB 8-bit
+   (``tone: camcorder`` = whole-frame metered auto-exposure + BT.709 curve with a highlight knee).
 Noise is seeded per (scenario seed, camera, frame) through ``rng_for``; fixed-pattern noise per
 (seed, camera). Labels are computed from the renderer's exact buffers, never from these frames.
 """
@@ -27,6 +29,7 @@ from scenes.schema import RgbCamera, ThermalCamera
 from simulator.physics import thermal as radiometry
 from simulator.physics.timeline import Timeline
 from simulator.seeding import rng_for
+from simulator.sensors.agc import CamcorderExposure, PlateauAgc
 from simulator.sensors.encode import agc_8bit, kelvin_to_counts, rgb_to_srgb8
 
 PLANCK_H = 6.62607015e-34
@@ -60,11 +63,15 @@ def optics_transfer(fx_per_um: np.ndarray, fy_per_um: np.ndarray, f_number: floa
 
 
 @lru_cache(maxsize=16)
-def psf_kernel(pixel_pitch_um: float, f_number: float, wavelength_um: float, defocus_blur_um: float) -> np.ndarray:
+def psf_kernel(pixel_pitch_um: float, f_number: float, wavelength_um: float, defocus_blur_um: float,
+               blur_sigma_um: float = 0.0) -> np.ndarray:
     """Discrete PSF: K[i, j] = energy of a point imaged at the centre of pixel (0, 0) that lands in
-    pixel (i, j) (optics PSF integrated over the pixel aperture). Odd square, sums to 1."""
+    pixel (i, j) (optics PSF integrated over the pixel aperture). Odd square, sums to 1.
+    ``blur_sigma_um``: an extra Gaussian (rms per axis) for what is not diffraction or defocus: lens
+    aberrations, an optical low-pass filter, detector crosstalk, the video path's resampling."""
     radius_px = int(max(2, np.ceil(20 * wavelength_um * f_number / pixel_pitch_um),
-                        np.ceil(defocus_blur_um / pixel_pitch_um) + 2))
+                        np.ceil(defocus_blur_um / pixel_pitch_um) + 2,
+                        np.ceil(4 * blur_sigma_um / pixel_pitch_um) + 1))
     size_px = 2 * radius_px + 1
     cutoff = 1.0 / (wavelength_um * f_number)                        # cycles/um
     sub = int(max(8, np.ceil(4 * pixel_pitch_um * cutoff)))          # fine samples per pixel (> Nyquist)
@@ -73,6 +80,8 @@ def psf_kernel(pixel_pitch_um: float, f_number: float, wavelength_um: float, def
     f = np.fft.fftfreq(n, d=pixel_pitch_um / sub)
     fx, fy = np.meshgrid(f, f)
     h = optics_transfer(fx, fy, f_number, wavelength_um, defocus_blur_um)
+    if blur_sigma_um > 0:                                             # Gaussian MTF exp(-2 pi^2 s^2 f^2)
+        h = h * np.exp(-2.0 * np.pi ** 2 * blur_sigma_um ** 2 * (fx ** 2 + fy ** 2))
     h = h * np.sinc(fx * pixel_pitch_um) * np.sinc(fy * pixel_pitch_um)   # pixel aperture (box)
     fine = np.real(np.fft.ifft2(h))                                   # (PSF * box)(x) on the fine grid, periodic
     fine = np.fft.fftshift(fine) * sub * sub                          # density per pixel area
@@ -318,7 +327,8 @@ class ThermalSensor:
 
     def __post_init__(self) -> None:
         p = self.params
-        self.kernel = psf_kernel(p.pixel_pitch_um, p.f_number, p.wavelength_um, p.defocus_blur_um)
+        self.kernel = psf_kernel(p.pixel_pitch_um, p.f_number, p.wavelength_um, p.defocus_blur_um,
+                                 p.blur_sigma_px * p.pixel_pitch_um)
         self.optics = KernelFilter(self.kernel)
         self.lag_alpha = 1.0 - float(np.exp(-self.frame_period_s / p.time_constant_s)) if p.time_constant_s > 0 else 1.0
         self.motion = _motion(self.timeline, "thermal")
@@ -328,6 +338,9 @@ class ThermalSensor:
         self._gain_row = (1.0 + self.column_gain[None, :]).astype(np.float32)
         self._offset_row = (self.nuc_reference_k + self.column_offset_k[None, :]).astype(np.float32)
         self._scratch = Scratch()
+        self._plateau = PlateauAgc(p.kelvin_per_count, p.agc_bin_k, p.agc_plateau_fraction, p.agc_linear_fraction,
+                                   p.agc_tail_fraction, p.agc_min_span_k, p.agc_damping, p.agc_base_sigma_px,
+                                   p.agc_base_gain) if p.agc == "plateau" else None
 
     def detector_radiance(self, frame: int, radiance: np.ndarray) -> np.ndarray:
         """Optics + in-frame motion + bolometer lag, in W sr^-1 m^-2 (no noise)."""
@@ -358,6 +371,8 @@ class ThermalSensor:
         counts = np.clip(level, 0, 2 ** p.adc_bits - 1, out=level).astype(np.uint16)
         if p.agc == "histogram":                      # = agc(counts x kelvin_per_count, 'histogram')
             return kelvin, counts, equalise_counts(counts)
+        if self._plateau is not None:                 # stateful: the transfer is damped over frames
+            return kelvin, counts, self._plateau(counts)
         shown = np.multiply(counts, np.float32(p.kelvin_per_count), out=level, dtype=np.float32)
         return kelvin, counts, agc(shown, p.agc)
 
@@ -383,7 +398,8 @@ class RgbSensor:
     def __post_init__(self) -> None:
         p = self.params
         self.pixel_pitch_um = p.sensor_width_mm * 1000.0 / p.width_px
-        self.kernels = [psf_kernel(self.pixel_pitch_um, p.f_number, wl, p.defocus_blur_um) for wl in RGB_WAVELENGTHS_UM]
+        self.kernels = [psf_kernel(self.pixel_pitch_um, p.f_number, wl, p.defocus_blur_um,
+                                   p.blur_sigma_px * self.pixel_pitch_um) for wl in RGB_WAVELENGTHS_UM]
         self.optics = [KernelFilter(k) for k in self.kernels]
         self.bin_area = (self.pixel_pitch_um / p.native_pixel_pitch_um) ** 2
         self.full_well_e = p.full_well_e * self.bin_area
@@ -401,6 +417,9 @@ class RgbSensor:
         self.needed_exposure_s = float(needed_s)
         self.motion = _motion(self.timeline, "rgb")
         self._scratch = Scratch()
+        levels = 2 ** p.adc_bits - 1
+        self._camcorder = CamcorderExposure(self.gain / levels, levels, p.ae_key, p.ae_damping, p.knee_point,
+                                            p.knee_slope) if p.tone == "camcorder" else None
 
     def electrons_per_s_per_native_pixel(self, radiance_per_nm: float) -> float:
         """Photo-electron rate of a native pixel looking at a scene of this spectral radiance
@@ -443,6 +462,8 @@ class RgbSensor:
         noisy += np.float32(0.5)
         level = self._scratch("level", noisy.shape, np.uint16)        # ADC level, rounded (adc_bits <= 16)
         np.copyto(level, noisy, casting="unsafe")
+        if self._camcorder is not None:               # whole-frame auto-exposure + BT.709 knee curve
+            return self._camcorder(level)
         return self.srgb_lut.take(level.ravel()).reshape(level.shape)   # -> sRGB 8-bit
 
     @property
@@ -481,22 +502,35 @@ class CameraModel:
         if not self.ideal:
             self.rgb = RgbSensor(rig.rgb, timeline, period, render_exposure)
             self.thermal = ThermalSensor(rig.thermal, timeline, period, scenario.atmosphere.air_temperature_k)
+        self.recording = None
+        if rig.recording is not None:                 # opened now: a refused rate fails before any frame
+            from simulator.sensors.recording import RecordingChain
+
+            self.recording = RecordingChain(rig.recording, (rig.rgb.width_px, rig.rgb.height_px),
+                                            (rig.thermal.width_px, rig.thermal.height_px), scenario.frame_rate_hz)
 
     def record(self, frame: int, rgb_linear: np.ndarray, thermal_radiance: np.ndarray,
                thermal_kelvin: np.ndarray) -> RecordedFrame:
-        """The recorded frames of one rendered frame (radiance in, file-ready arrays out)."""
+        """The recorded frames of one rendered frame (radiance in, file-ready arrays out); frames in order."""
         kpc = self.rig.thermal.kelvin_per_count
         if self.ideal:
             counts = kelvin_to_counts(thermal_kelvin, kpc)
-            return RecordedFrame(rgb_to_srgb8(rgb_linear), counts, agc_8bit(thermal_kelvin)[0], thermal_kelvin)
-        kelvin, counts, shown = self.thermal.record(frame, thermal_radiance)
-        return RecordedFrame(self.rgb.record(frame, rgb_linear), counts, shown, kelvin)
+            out = RecordedFrame(rgb_to_srgb8(rgb_linear), counts, agc_8bit(thermal_kelvin)[0], thermal_kelvin)
+        else:
+            kelvin, counts, shown = self.thermal.record(frame, thermal_radiance)
+            out = RecordedFrame(self.rgb.record(frame, rgb_linear), counts, shown, kelvin)
+        if self.recording is not None:                # the recorder: H.264 on the 8-bit views
+            out.rgb8 = self.recording.rgb(out.rgb8)
+            out.thermal_agc8 = self.recording.thermal(out.thermal_agc8)
+        return out
 
     def record_buffers(self, frame: int, buffers) -> RecordedFrame:
         """``record`` for any object with rgb_linear, thermal_radiance and thermal_kelvin (FrameBuffers)."""
         return self.record(frame, buffers.rgb_linear, buffers.thermal_radiance, buffers.thermal_kelvin)
 
     def metadata(self) -> dict:
-        if self.ideal:
-            return {"sensor": "ideal"}
-        return {"sensor": "camera", "rgb": self.rgb.metadata(), "thermal": self.thermal.metadata()}
+        meta = {"sensor": "ideal"} if self.ideal else \
+            {"sensor": "camera", "rgb": self.rgb.metadata(), "thermal": self.thermal.metadata()}
+        if self.recording is not None:
+            meta["recording"] = self.recording.metadata()
+        return meta

@@ -171,7 +171,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     from evids.experiments.pipeline import forked_map
     from simulator.dataset.generate import generate_dataset
     from simulator.formats.svanstrom import open_benchmark
-    from simulator.formats.validation import FormatError
+    from scenes.errors import UserInputError
     from simulator.seeding import rng_for
 
     t0 = time.time()
@@ -191,7 +191,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     # 1. real samples -----------------------------------------------------------------------------
     t = time.time()
     params = dict(frames_per_clip=vis.frames_per_real_clip, crop_px=vis.crop_px, context=vis.crop_context,
-                  min_crop_px=vis.min_crop_px, seed=cfg.seed)
+                  min_crop_px=vis.min_crop_px, seed=cfg.seed, keep=vis.detector_frames_per_clip)
     calls = [(clip, params) for s in sensors for clip in bench.clips(s, classes=classes)]
     samples: list[FrameSample] = []
     clip_summaries: list[ClipSummary] = []
@@ -204,7 +204,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         got, summ, err = results[i]
         if err is not None:
             if strict:
-                raise FormatError(err, "", "(--strict)")
+                raise UserInputError(f"{err} (--strict stops at the first real clip that fails the reader's checks)")
             skipped.append(err)
             continue
         samples += got
@@ -221,7 +221,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     for k, cls in enumerate(classes):
         gen_cfg = _generation_config(cfg, cls, base_dir, quick)
         folder = out / "synthetic" / cls
-        res = generate_dataset(gen_cfg, folder, cfg.seed + k, workers=vis.workers, progress=progress)
+        res = generate_dataset(gen_cfg, folder, cfg.seed + k, workers=1 if quick else vis.workers, progress=progress)
         for j, seq in enumerate(sorted(p for p in (folder / "sequences").iterdir() if p.is_dir())):
             for sensor in sensors:
                 syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
@@ -265,8 +265,18 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                                                       classify.crop_set(synthetic, classes, kind),
                                                       seeds=seeds, epochs=epochs, batch_size=tr.batch_size,
                                                       learning_rate=tr.learning_rate,
-                                                      rng=rng_for(cfg.seed, "sim2real", 8,
-                                                                  VISUAL_SENSORS.index(sensor)))
+                                                      rng=rng_for(cfg.seed, "sim2real", 8, VISUAL_SENSORS.index(sensor)))
+        if vis.detector_frames_per_clip:
+            from evids.experiments.sim2real import detect
+
+            s_clips = [c for c in clip_summaries if c.sensor == sensor]
+            train_sets = {"real": [c for c in s_clips if c.domain == "real" and c.half == "calibration"],
+                          "synthetic": [c for c in s_clips if c.domain == "synthetic"]}
+            detector = detect.run_detector(train_sets, [c for c in s_clips if c.domain == "real" and c.half == "evaluation"],
+                                           sensor, seeds=seeds, steps=vis.quick_detector_steps if quick else vis.detector_steps,
+                                           folder=out / "detector" / sensor)
+        else:
+            detector = {"note": "off (visual.detector_frames_per_clip: 0)"}
         files = write_sheets(s_samples, [c for c in clip_summaries if c.sensor == sensor], sensor, classes, sheets,
                              rng_for(cfg.seed, "sim2real", 9, VISUAL_SENSORS.index(sensor)))
         summary["sensors"][sensor] = {
@@ -275,7 +285,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                         "real_evaluation": len({s.clip for s in real_eval}),
                         "synthetic": len({s.clip for s in synthetic})},
             "statistics": statistics_table(s_samples, clip_summaries, sensor, classes),
-            "classifier": cond, "domain_classifier": domain, "sheets": files,
+            "classifier": cond, "domain_classifier": domain, "detector": detector, "sheets": files,
         }
         summary["timings_s"][f"{sensor}_models"] = time.time() - t
 
@@ -334,6 +344,13 @@ def format_table(summary: dict[str, Any]) -> str:
                 lines.append(f"  {label:<40} {f.format(r['estimate'])} [{f.format(r['ci_low'])}, "
                              f"{f.format(r['ci_high'])}]"
                              f" MDE {r['mde']:.3f}")
+        det = res.get("detector", {})
+        for name, r in det.get("conditions", {}).items():
+            if "ap50" in r:
+                lines.append(f"  detector AP50, trained on {name:<17} {r['ap50']:.3f} (per seed "
+                             + ", ".join(f"{v:.3f}" for v in r["per_seed"]) + ")")
+        if "ratio_synthetic_over_real" in det:
+            lines.append(f"  detector AP50 ratio synthetic / real     {det['ratio_synthetic_over_real']:.3f}")
         for kind, d in res["domain_classifier"].items():
             lines.append(f"  domain classifier, {kind + 's':<23} {d['accuracy']:.3f} (0.5 = indistinguishable)")
         inside = [(cls, st) for cls, rows in res["statistics"].items() for st, row in rows.items()

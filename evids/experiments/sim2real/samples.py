@@ -49,6 +49,7 @@ class ClipSummary:
     n_frames: int
     absent_fraction: float
     thumbnail: np.ndarray | None = None     # one whole frame, for the contact sheets
+    frames: list[tuple[int, np.ndarray, Box | None]] = field(default_factory=list)  # kept whole frames (detector)
 
 
 def grey(image: np.ndarray) -> np.ndarray:
@@ -165,9 +166,12 @@ def pick_frames(n_frames: int, k: int) -> list[int]:
 
 def samples_from_frames(frames: Iterator[tuple[int, np.ndarray]], boxes: list[Box | None], wanted: list[int], *,
                         domain: str, sensor: str, cls: str, clip: str, half: str, crop_px: int, context: float,
-                        min_crop_px: int, rng: np.random.Generator) -> tuple[list[FrameSample], ClipSummary]:
+                        min_crop_px: int, rng: np.random.Generator, keep: int = 0) -> tuple[list[FrameSample], ClipSummary]:
     """Samples of the wanted frames (targets present only; background patches always) and the clip
-    summary. ``frames`` must yield every wanted index and its predecessor, in order."""
+    summary, which keeps ``keep`` of the wanted frames whole (spread evenly; for the detector).
+    ``frames`` must yield every wanted index and its predecessor, in order."""
+    kept_idx = {wanted[int(round(j))] for j in np.linspace(0, len(wanted) - 1, min(keep, len(wanted)))} if keep else set()
+    kept: list[tuple[int, np.ndarray, Box | None]] = []
     samples: list[FrameSample] = []
     wanted_set = set(wanted)
     previous: tuple[int, np.ndarray] | None = None
@@ -188,10 +192,12 @@ def samples_from_frames(frames: Iterator[tuple[int, np.ndarray]], boxes: list[Bo
                                            crop if crop is not None else np.empty((0,), np.uint8), bg, stats))
             if thumb is None and box is not None:
                 thumb = image
+            if i in kept_idx:
+                kept.append((i, image, box))
         previous = (i, image)
     n = len(boxes)
     absent = sum(b is None for b in boxes) / n if n else float("nan")
-    return samples, ClipSummary(domain, sensor, cls, clip, half, n, absent, thumb)
+    return samples, ClipSummary(domain, sensor, cls, clip, half, n, absent, thumb, kept)
 
 
 def needed_indices(wanted: list[int]) -> set[int]:
@@ -203,7 +209,7 @@ def needed_indices(wanted: list[int]) -> set[int]:
 
 
 def real_clip_samples(bench, clip, *, frames_per_clip: int, crop_px: int, context: float, min_crop_px: int,
-                      seed: int) -> tuple[list[FrameSample], ClipSummary]:
+                      seed: int, keep: int = 0) -> tuple[list[FrameSample], ClipSummary]:
     """Samples of one real clip (the benchmark's aligned labels; frames decoded once)."""
     from simulator.seeding import rng_for
 
@@ -216,7 +222,7 @@ def real_clip_samples(bench, clip, *, frames_per_clip: int, crop_px: int, contex
     frames = bench.frames(clip, indices=needed_indices(wanted))
     return samples_from_frames(frames, boxes, sorted(set(wanted)), domain="real", sensor=clip.sensor, cls=clip.cls,
                                clip=clip.name, half=clip.half, crop_px=crop_px, context=context,
-                               min_crop_px=min_crop_px, rng=rng)
+                               min_crop_px=min_crop_px, rng=rng, keep=keep)
 
 
 def _sample_key(domain: str, sensor: str, cls: str, number: int) -> tuple[int, int, int, int]:
@@ -259,7 +265,7 @@ def synthetic_boxes(sequence_dir: Path, sensor: str) -> list[Box | None]:
 
 
 def synthetic_sequence_samples(sequence_dir: Path, *, sensor: str, cls: str, frames_per_clip: int, crop_px: int,
-                               context: float, min_crop_px: int, seed: int, index: int
+                               context: float, min_crop_px: int, seed: int, index: int, keep: int = 0
                                ) -> tuple[list[FrameSample], ClipSummary]:
     from simulator.seeding import rng_for
 
@@ -269,4 +275,4 @@ def synthetic_sequence_samples(sequence_dir: Path, *, sensor: str, cls: str, fra
     frames = synthetic_frames(sequence_dir, sensor, needed_indices(wanted))
     return samples_from_frames(frames, boxes, wanted, domain="synthetic", sensor=sensor, cls=cls,
                                clip=f"{cls}/{sequence_dir.name}", half="synthetic", crop_px=crop_px,
-                               context=context, min_crop_px=min_crop_px, rng=rng)
+                               context=context, min_crop_px=min_crop_px, rng=rng, keep=keep)

@@ -325,3 +325,38 @@ def test_recorded_frames_are_fresh_arrays_not_reused_work_arrays(agc_mode):
     again = [fresh.record(i, *inputs[i]) for i in range(3)]
     for a, b in zip([first, *later], again):
         assert a.rgb8.tobytes() == b.rgb8.tobytes() and a.thermal_counts.tobytes() == b.thermal_counts.tobytes()
+
+
+def test_plateau_agc_and_camcorder_tone_are_deterministic_and_stateful():
+    def run(seed):
+        tl = _timeline(seed=seed, frames=3, agc="plateau")
+        rig = tl.scenario.camera_rig
+        rgb_params = rig.rgb.model_copy(update={"tone": "camcorder"})
+        model = cam.CameraModel(tl, render_exposure=30.0)
+        model.rgb = cam.RgbSensor(rgb_params, tl, 1 / 30, 30.0)
+        rng = np.random.default_rng(3)
+        out = []
+        for i in range(3):
+            rgb = np.full((48, 64, 3), 0.1 * (i + 1), np.float32)      # the scene brightens: AE follows, damped
+            k = (280 + 5 * rng.random((48, 64))).astype(np.float32)
+            r = model.record(i, rgb, thermal.band_radiance(k).astype(np.float32), k)
+            out.append((r.rgb8.tobytes(), r.thermal_agc8.tobytes(), float(np.median(r.rgb8))))
+        return out
+
+    a, b = run(1), run(1)
+    assert a == b and run(2) != a
+    medians = [m for _, _, m in a]
+    assert medians[0] == pytest.approx(125, abs=3)                      # first frame: metered straight to the key
+    assert medians[1] > medians[0] and medians[2] > medians[1]         # then damped: brighter scene, brighter frame
+
+
+def test_gaussian_blur_adds_its_variance_to_the_psf():
+    sharp = cam.psf_kernel(12.0, 1.0, 0.5, 0.0)                       # diffraction negligible: a point stays in its pixel
+    assert sharp[sharp.shape[0] // 2, sharp.shape[1] // 2] > 0.98
+    soft = cam.psf_kernel(12.0, 1.0, 0.5, 0.0, 12.0)                   # sigma = 1 pixel
+    r = soft.shape[0] // 2
+    x = np.arange(-r, r + 1)
+    var_x = float((soft.sum(axis=0) * x ** 2).sum())
+    assert soft.sum() == pytest.approx(1.0) and var_x == pytest.approx(1.0 + 1 / 12, rel=0.04)   # sigma^2 + binning (Sheppard)
+    default = cam.psf_kernel(12.0, 1.0, 10.0, 0.0)
+    assert np.array_equal(default, cam.psf_kernel(12.0, 1.0, 10.0, 0.0, 0.0))   # 0 = the former kernel

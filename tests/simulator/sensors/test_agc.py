@@ -1,0 +1,106 @@
+"""Plateau equalisation (LWIR) and the camcorder auto-exposure + tone curve (visible)."""
+import numpy as np
+import pytest
+
+from simulator.sensors.agc import (
+    CamcorderExposure,
+    PlateauAgc,
+    bt709_knee,
+    plateau_transfer,
+)
+
+
+def test_plateau_transfer_by_hand():
+    hist = np.array([0, 10, 0, 10, 80, 0])
+    # cap 20 of 100 pixels: kept [0, 10, 0, 10, 20, 0]; mid-bin cumulative / 40
+    eq = plateau_transfer(hist, 0.2, 0.0, 0.0, 0.0)
+    assert np.allclose(eq, [0, 0.125, 0.25, 0.375, 0.75, 1.0])
+    lin = plateau_transfer(hist, 0.2, 1.0, 0.0, 0.0)         # occupied bins 1..4
+    assert np.allclose(lin, [0, 0, 1 / 3, 2 / 3, 1, 1])
+    mix = plateau_transfer(hist, 0.2, 0.25, 0.0, 0.0)
+    assert np.allclose(mix, 0.25 * lin + 0.75 * eq)
+    # plain equalisation (no cap) gives the 80-pixel bin most of the range
+    assert np.allclose(plateau_transfer(hist, 1.0, 0.0, 0.0, 0.0), [0, 0.05, 0.1, 0.15, 0.6, 1.0])
+
+
+def test_narrow_scene_is_not_stretched_beyond_the_maximum_gain():
+    hist = np.zeros(100)
+    hist[40:60] = 5                                            # 20 bins wide
+    t = plateau_transfer(hist, 1.0, 1.0, 0.0, 80.0)            # min span 80 bins: a quarter of the range
+    assert t[40] == pytest.approx(0.5 - 0.5 * 19 / 80) and t[59] == pytest.approx(0.5 + 0.5 * 19 / 80)
+    flat = np.zeros(10)
+    flat[3] = 50
+    assert np.allclose(plateau_transfer(flat, 0.01, 0.3, 0.0, 4.0)[3], 0.5)
+
+
+def _horizon_counts(rng, hot_ground_k=12.0, h=120, w=160):
+    """Sky cooling upward (a 4 K gradient) over a warm ground in the lower third, 0.01 K counts."""
+    y = np.arange(h)[:, None] * np.ones((1, w))
+    kelvin = 270.0 + 4.0 * y / h
+    kelvin[int(2 * h / 3):] = 283.0 + hot_ground_k * rng.random((h - int(2 * h / 3), w))
+    kelvin += rng.normal(0, 0.04, kelvin.shape)
+    return np.rint(kelvin / 0.01).astype(np.uint16)
+
+
+def test_plateau_puts_the_sky_at_mid_grey_and_keeps_a_faint_target_faint():
+    rng = np.random.default_rng(0)
+    counts = _horizon_counts(rng)
+    counts[30:32, 80:82] += 100                                  # +1 K target in the sky
+    agc = PlateauAgc(0.01, 0.05, 0.005, 0.2, 0.005, 4.0, 0.0)
+    out = agc(counts).astype(int)
+    sky = out[:70]
+    assert 40 < np.median(sky) < 160                             # not black as a min/max stretch makes it
+    assert np.all(np.diff(out.ravel()[np.argsort(counts.ravel(), kind="stable")]) >= 0)   # monotonic
+    target = out[30:32, 80:82].mean() - np.median(out[26:36, 76:86])
+    plain = PlateauAgc(0.01, 0.05, 1.0, 0.0, 0.0, 4.0, 0.0)(counts).astype(int)
+    target_plain = plain[30:32, 80:82].mean() - np.median(plain[26:36, 76:86])
+    assert 5 < target < target_plain                              # the plateau caps the sky's share of grey levels
+    lo, hi = np.percentile(counts, [0, 100])
+    minmax = np.rint((counts - lo) / (hi - lo) * 255)
+    assert np.median(minmax[:70]) < 40                           # what the min/max view does to this sky
+
+
+def test_plateau_transfer_is_damped_over_frames():
+    rng = np.random.default_rng(1)
+    a, b = _horizon_counts(rng), _horizon_counts(rng, hot_ground_k=30.0)
+    args = (0.01, 0.05, 0.005, 0.2, 0.005, 4.0)
+    damped = PlateauAgc(*args, 0.75)
+    assert np.array_equal(damped(a), PlateauAgc(*args, 0.0)(a))  # the first frame has no memory
+    second = damped(b)
+    undamped = PlateauAgc(*args, 0.0)
+    _, t_a = undamped.transfer_of(a)
+    binned, t_b = undamped.transfer_of(b)
+    assert np.array_equal(second, np.rint((0.75 * t_a + 0.25 * t_b) * 255).astype(np.uint8)[binned].reshape(b.shape))
+    assert not np.array_equal(second, undamped(b))
+
+
+def test_bt709_knee_by_hand():
+    v = bt709_knee(np.array([0.0, 0.01, 0.018, 0.25, 1.0, 10.0]), 0.85, 0.25)
+    assert v[0] == 0 and v[1] == pytest.approx(0.045) and v[2] == pytest.approx(0.081, abs=1e-3)
+    assert v[3] == pytest.approx(1.099 * 0.25 ** 0.45 - 0.099)
+    assert v[4] == pytest.approx(0.85 + 0.15 * 0.25) and v[5] == 1.0
+
+
+def test_auto_exposure_drives_any_uniform_scene_to_the_key():
+    levels = 4095
+    outs = []
+    for fill in (300, 1200, 3000):
+        ae = CamcorderExposure(1.0 / levels, levels, 0.25, 0.0, 0.85, 0.25)
+        outs.append(int(ae(np.full((16, 16, 3), fill, np.uint16))[0, 0, 0]))
+    assert outs == [125, 125, 125]                               # 255 x BT.709(0.25) = 124.9
+    slow = CamcorderExposure(1.0 / levels, levels, 0.25, 0.5, 0.85, 0.25)
+    f1 = slow.factor(np.full((8, 8, 3), 1000, np.uint16))
+    f2 = slow.factor(np.full((8, 8, 3), 4000, np.uint16))        # 4x brighter: half the log step
+    assert f1 == pytest.approx(0.25 * levels / 1000) and f2 == pytest.approx(f1 * 0.5)
+
+
+def test_local_contrast_flattens_a_slow_gradient_and_keeps_the_detail():
+    y = np.mgrid[0:120, 0:160][0]
+    counts = (27000 + 4 * y).astype(np.uint16)                     # a 4.8 K sky gradient (0.01 K counts)
+    counts[60:62, 80:82] += 200                                    # a +2 K target
+    agc = PlateauAgc(0.01, 0.05, 0.005, 0.5, 0.005, 4.0, 0.0, base_sigma_px=15.0, base_gain=0.0)
+    flat = agc.local_contrast(counts).astype(float)
+    assert np.ptp(flat[40:80, 40]) < 0.25 * np.ptp(counts[40:80, 40].astype(float))   # the gradient is gone inside
+    assert flat[60:62, 80:82].mean() - np.median(flat[50:72, 70:92]) > 150                  # the target stays
+    kept = PlateauAgc(0.01, 0.05, 0.005, 0.5, 0.005, 4.0, 0.0, base_sigma_px=15.0, base_gain=1.0)
+    assert np.abs(kept.local_contrast(counts).astype(int) - counts).max() <= 1              # gain 1 = identity
