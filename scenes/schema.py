@@ -233,7 +233,8 @@ class RgbCamera(CameraIntrinsics):
         default="srgb", description="srgb: fixed exposure, sRGB curve; camcorder: whole-frame auto-exposure + "
                                     "BT.709 curve with a highlight knee (simulator/sensors/agc.py)")
     ae_key: float = Field(default=0.25, gt=0.0, le=1.0, description="camcorder: metered mean linear luminance target")
-    ae_damping: float = Field(default=0.9, ge=0.0, lt=1.0, description="camcorder: per-frame memory of the exposure (log)")
+    ae_damping: float = Field(default=0.9, ge=0.0, lt=1.0,
+                              description="camcorder: per-frame memory of the exposure (log)")
     knee_point: float = Field(default=0.85, gt=0.0, le=1.0, description="camcorder: output level where the knee starts")
     knee_slope: float = Field(default=0.25, gt=0.0, le=1.0, description="camcorder: slope factor above the knee")
 
@@ -262,7 +263,8 @@ class ThermalCamera(CameraIntrinsics):
     agc_linear_fraction: float = Field(default=0.2, ge=0.0, le=1.0, description="plateau: share of the linear map")
     agc_tail_fraction: float = Field(default=0.005, ge=0.0, lt=0.5, description="plateau: pixels ignored at each end")
     agc_min_span_k: float = Field(default=4.0, gt=0.0, le=200.0,
-                                  description="plateau: a scene narrower than this is not stretched to full range (max gain)")
+                                  description="plateau: a scene narrower than this is not stretched to full range (max "
+                                              "gain)")
     agc_damping: float = Field(default=0.9, ge=0.0, lt=1.0, description="plateau: per-frame memory of the transfer")
     agc_base_sigma_px: float = Field(default=0.0, ge=0.0, le=200.0,
                                      description="plateau: local contrast, Gaussian base (0 = off)")

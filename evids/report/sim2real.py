@@ -69,10 +69,12 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
                  ", ".join(f"{x:.3f}" for x in v.get("per_seed", [])), str(v.get("train_clips", ""))]
                 for k, v in det["conditions"].items()]
         ratio = det.get("ratio_synthetic_over_real")
-        parts.append(_table(["E1/E3 detector (sigmoid head)", "AP50 on the real evaluation half (pycocotools)", "per seed",
+        parts.append(_table(["E1/E3 detector (sigmoid head)", "AP50 on the real evaluation half (pycocotools)",
+                             "per seed",
                              "training clips"], rows)
                      + f"<p class='note'>{det['n_test_frames']} evaluation frames of {det['n_test_clips']} clips, "
-                     f"{det['n_test_boxes']} boxes (all classes are 'target').{f' Ratio synthetic / real: {ratio:.3f}.' if ratio else ''}</p>")
+                     f"{det['n_test_boxes']} boxes (all classes are "
+                     f"'target').{f' Ratio synthetic / real: {ratio:.3f}.' if ratio else ''}</p>")
     d = res["domain_classifier"]
     parts.append(_table(["domain classifier (real calibration half vs synthetic, split by clip)",
                          "held-out balanced accuracy"],

@@ -169,9 +169,9 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                  progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Run the whole protocol into ``out`` (see the module docstring); returns the summary."""
     from evids.experiments.pipeline import forked_map
+    from scenes.errors import UserInputError
     from simulator.dataset.generate import generate_dataset
     from simulator.formats.svanstrom import open_benchmark
-    from scenes.errors import UserInputError
     from simulator.seeding import rng_for
 
     t0 = time.time()
@@ -265,15 +265,18 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                                                       classify.crop_set(synthetic, classes, kind),
                                                       seeds=seeds, epochs=epochs, batch_size=tr.batch_size,
                                                       learning_rate=tr.learning_rate,
-                                                      rng=rng_for(cfg.seed, "sim2real", 8, VISUAL_SENSORS.index(sensor)))
+                                                      rng=rng_for(cfg.seed, "sim2real", 8,
+                                                                  VISUAL_SENSORS.index(sensor)))
         if vis.detector_frames_per_clip:
             from evids.experiments.sim2real import detect
 
             s_clips = [c for c in clip_summaries if c.sensor == sensor]
             train_sets = {"real": [c for c in s_clips if c.domain == "real" and c.half == "calibration"],
                           "synthetic": [c for c in s_clips if c.domain == "synthetic"]}
-            detector = detect.run_detector(train_sets, [c for c in s_clips if c.domain == "real" and c.half == "evaluation"],
-                                           sensor, seeds=seeds, steps=vis.quick_detector_steps if quick else vis.detector_steps,
+            detector = detect.run_detector(train_sets,
+                                           [c for c in s_clips if c.domain == "real" and c.half == "evaluation"],
+                                           sensor, seeds=seeds, steps=vis.quick_detector_steps if quick
+                                           else vis.detector_steps,
                                            folder=out / "detector" / sensor)
         else:
             detector = {"note": "off (visual.detector_frames_per_clip: 0)"}

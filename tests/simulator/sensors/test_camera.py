@@ -351,12 +351,13 @@ def test_plateau_agc_and_camcorder_tone_are_deterministic_and_stateful():
 
 
 def test_gaussian_blur_adds_its_variance_to_the_psf():
-    sharp = cam.psf_kernel(12.0, 1.0, 0.5, 0.0)                       # diffraction negligible: a point stays in its pixel
+    sharp = cam.psf_kernel(12.0, 1.0, 0.5, 0.0)  # diffraction negligible: a point stays in its pixel
     assert sharp[sharp.shape[0] // 2, sharp.shape[1] // 2] > 0.98
     soft = cam.psf_kernel(12.0, 1.0, 0.5, 0.0, 12.0)                   # sigma = 1 pixel
     r = soft.shape[0] // 2
     x = np.arange(-r, r + 1)
     var_x = float((soft.sum(axis=0) * x ** 2).sum())
-    assert soft.sum() == pytest.approx(1.0) and var_x == pytest.approx(1.0 + 1 / 12, rel=0.04)   # sigma^2 + binning (Sheppard)
+    assert (soft.sum() == pytest.approx(1.0)
+            and var_x == pytest.approx(1.0 + 1 / 12, rel=0.04))   # sigma^2 + binning (Sheppard)
     default = cam.psf_kernel(12.0, 1.0, 10.0, 0.0)
     assert np.array_equal(default, cam.psf_kernel(12.0, 1.0, 10.0, 0.0, 0.0))   # 0 = the former kernel
