@@ -3,8 +3,8 @@ crop, a background patch and the image statistics of docs/SIM2REAL.md.
 
 A frame is an 8-bit grey (IR) or RGB (visible) image as the camera recorded it, with the target's
 box ``(x, y, w, h)`` in pixels (or None when the target is absent). For generated sequences the IR
-frame is the thermal camera's 8-bit output (``simulator.sensors.encode.agc_8bit`` of the recorded
-kelvin, as every 8-bit export of the project) and the visible frame the RGB camera's.
+frame is the thermal camera's recorded 8-bit view (``thermal_agc/``: the camera model's gain stage
+and, when switched on, its H.264 recording chain) and the visible frame the RGB camera's.
 """
 from __future__ import annotations
 
@@ -239,15 +239,13 @@ def _sample_key(domain: str, sensor: str, cls: str, number: int) -> tuple[int, i
 
 
 def synthetic_frames(sequence_dir: Path, sensor: str, indices: set[int]) -> Iterator[tuple[int, np.ndarray]]:
-    """8-bit frames of a native sequence as its camera recorded them: thermal -> AGC grey, rgb -> RGB."""
-    from simulator.formats.native import load_meta, load_rgb, load_thermal_kelvin
-    from simulator.sensors.encode import agc_8bit
+    """8-bit frames of a native sequence as its camera recorded them: the thermal camera's 8-bit view
+    (``thermal_agc/``: its gain stage and recording chain) and the RGB camera's frame."""
+    from simulator.formats.native import frame_name, load_rgb, read_image
 
-    meta = load_meta(sequence_dir)
-    kpc = meta["cameras"]["thermal"]["kelvin_per_count"]
     for i in sorted(indices):
         if sensor == "ir":
-            yield i, agc_8bit(load_thermal_kelvin(sequence_dir, i, kpc))[0]
+            yield i, read_image(sequence_dir / "thermal_agc" / frame_name(i, "png"))
         else:
             yield i, load_rgb(sequence_dir, i)
 
