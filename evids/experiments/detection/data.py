@@ -207,6 +207,12 @@ def inputs(seq: SequenceData) -> dict[str, torch.Tensor]:
     return {"rgb": torch.from_numpy(rgb_input(seq.rgb)), "thermal": torch.from_numpy(thermal_input(seq.thermal_k))}
 
 
+def pad_to_stride(x: torch.Tensor, stride: int = 4) -> torch.Tensor:
+    h, w = x.shape[-2:]
+    ph, pw = (-h) % stride, (-w) % stride
+    return torch.nn.functional.pad(x, (0, pw, 0, ph)) if ph or pw else x
+
+
 def sample_crops(seqs: list[SequenceData], streams: tuple[str, ...], crop: int, batch: int, target_fraction: float,
                  gen: np.random.Generator) -> tuple[dict[str, torch.Tensor], list[np.ndarray]]:
     """A training batch of ``crop`` x ``crop`` windows (same window in every stream: registered
