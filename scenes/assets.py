@@ -37,8 +37,9 @@ __all__ = [
     "ellipsoid_mesh",
 ]
 
-ROLES = ("body", "arm", "motor", "prop", "battery", "camera", "wing", "fuselage", "tail", "engine", "head", "feather")
-KINDS = ("quadcopter", "hexacopter", "fixed_wing", "bird", "airliner")
+ROLES = ("body", "arm", "motor", "prop", "battery", "camera", "wing", "fuselage", "tail", "engine", "head", "feather",
+         "exhaust")
+KINDS = ("quadcopter", "hexacopter", "fixed_wing", "bird", "airliner", "helicopter")
 
 #: Peak bird wing dihedral (rad); wing angle = amplitude * sin(flap_phase_rad).
 BIRD_FLAP_AMPLITUDE_RAD = math.radians(50.0)
@@ -385,11 +386,16 @@ _QUAD = _Multirotor(4, np.radians([45.0, 135.0, 225.0, 315.0]), 0.30, 0.20, 0.06
 _HEXA = _Multirotor(6, np.radians([30.0, 90.0, 150.0, 210.0, 270.0, 330.0]), 0.35, 0.15, 0.052)
 _FW_HUB_X = 0.283  # fixed-wing nose prop hub x (fraction of span)
 _FW_PROP_R = 0.075
+_HELI_HUB_Z = 0.075          # main rotor hub height above the cabin centre (fraction of rotor diameter)
+_HELI_TAIL_X = -0.60         # tail rotor hub x
+_HELI_TAIL_R = 0.085         # tail rotor radius
+HELI_TAIL_GEAR = 5.5         # tail rotor turns this many times per main rotor turn (typical 5-6)
 
 
 def rotor_count(kind: str) -> int:
     """Number of rotors/propellers: 4 quadcopter, 6 hexacopter, 1 fixed_wing (nose puller), 0 bird/airliner."""
-    return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1, "bird": 0, "airliner": 0}[_check_kind(kind)]
+    return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1, "bird": 0, "airliner": 0,
+            "helicopter": 1}[_check_kind(kind)]
 
 
 def blade_count(kind: str) -> int:
@@ -414,6 +420,8 @@ def rotor_positions_m(kind: str, size_m: float) -> np.ndarray:
         return s * np.stack([lay.arm_r * np.cos(a), lay.arm_r * np.sin(a), np.full(lay.n, lay.hub_z)], axis=1)
     if kind == "fixed_wing":
         return s * np.array([[_FW_HUB_X, 0.0, 0.0]])
+    if kind == "helicopter":   # the main rotor hub (the tail rotor turns with it, geared)
+        return s * np.array([[0.0, 0.0, _HELI_HUB_Z]])
     return np.zeros((0, 3))
 
 
@@ -574,12 +582,58 @@ def _airliner() -> list[tuple[str, str, Mesh]]:
     return parts
 
 
-def build_asset(kind: str, size_m: float, *, flap_phase_rad: float = 0.0,
-                rotor_angle_rad: float = 0.0) -> list[MeshPart]:
+def _rotor_blades(radius: float, n_blades: int, angle: float, chord: float) -> Mesh:
+    """``n_blades`` flat untwisted blades (root at 0.12 r) spinning about local +z, blade 0 at ``angle``."""
+    meshes = []
+    t = 0.012 * radius
+    for k in range(n_blades):
+        a = angle + 2 * math.pi * k / n_blades
+        es = np.array([math.cos(a), math.sin(a), 0.0])
+        ec = np.array([-math.sin(a), math.cos(a), 0.0])
+        sec = np.array([[0.5, 0.0], [0.2, 0.5], [-0.25, 0.5], [-0.5, 0.0], [-0.25, -0.5], [0.2, -0.5]]) * [chord, t]
+        meshes.append(loft_mesh([_ring(sec, f * radius * es, ec, np.array([0.0, 0.0, 1.0])) for f in (0.12, 0.6, 1.0)]))
+    return _merge(*meshes)
+
+
+def _helicopter(rotor_angle: float, main_blades: int) -> list[tuple[str, str, Mesh]]:
+    """A light single-engine helicopter at unit main-rotor diameter: cabin, tail boom and fin, skids,
+    engine with a rearward exhaust on the cabin roof, main rotor and a geared tail rotor (left side)."""
+    ey, ez = np.array([0, 1.0, 0]), np.array([0, 0, 1.0])
+    # cabin + boom as one loft (x, half-width, half-height, centre z)
+    st = [(0.22, 0.02, 0.03, -0.03), (0.20, 0.055, 0.065, -0.02), (0.14, 0.075, 0.085, -0.005), (0.04, 0.08, 0.09, 0.0),
+          (-0.07, 0.075, 0.085, 0.0), (-0.13, 0.045, 0.05, 0.01), (-0.2, 0.022, 0.025, 0.02),
+          (-0.58, 0.012, 0.014, 0.03)]
+    fus = loft_mesh([_ring(_superellipse(16, hw, hh, 2.2), (x, 0, zc), ey, ez) for x, hw, hh, zc in st])
+    parts: list[tuple[str, str, Mesh]] = [("fuselage", "fuselage", fus)]
+    fin = _fin_loft([(0.02, -0.56, 0.07, 0.1), (0.12, -0.60, 0.04, 0.1)])
+    parts.append(("fin", "tail", fin))
+    engine = ellipsoid_mesh((-0.04, 0.0, 0.085), (0.085, 0.04, 0.03), 14, 8)
+    parts.append(("engine", "engine", engine))
+    exhaust = loft_mesh([_ring(_circle(10, 0.016), (x, 0, 0.09), ey, ez) for x in (-0.11, -0.15)])
+    parts.append(("exhaust", "exhaust", exhaust))
+    mast = cylinder_mesh(8, 0.008, 0.09, _HELI_HUB_Z)
+    skids = []
+    for side in (1.0, -1.0):
+        rail = box_mesh((0.03, side * 0.085, -0.13), (0.3, 0.012, 0.012))
+        leg_f = box_mesh((0.1, side * 0.07, -0.105), (0.012, 0.01, 0.05))
+        leg_b = box_mesh((-0.05, side * 0.07, -0.105), (0.012, 0.01, 0.05))
+        skids.append(_merge(rail, leg_f, leg_b))
+    parts.append(("mast_skids", "body", _merge(mast, *skids)))
+    main = _xf(_rotor_blades(0.5, main_blades, rotor_angle, 0.05), None, (0.0, 0.0, _HELI_HUB_Z))
+    parts.append(("main_rotor", "prop", main))
+    tail = _rotor_blades(_HELI_TAIL_R, 2, HELI_TAIL_GEAR * rotor_angle, 0.02)
+    # spin axis local +z -> +y (the tail rotor disc stands vertical on the boom's left side)
+    parts.append(("tail_rotor", "prop", _xf(tail, _rot("x", -math.pi / 2), (_HELI_TAIL_X, 0.025, 0.07))))
+    return parts
+
+
+def build_asset(kind: str, size_m: float, *, flap_phase_rad: float = 0.0, rotor_angle_rad: float = 0.0,
+                main_blades: int = 4) -> list[MeshPart]:
     """Closed, watertight triangle meshes per part for ``kind`` scaled to overall span ``size_m``.
 
     Span: multirotors = diagonal motor-to-motor distance + 2 prop radii (tip-to-tip of the prop discs);
-    fixed_wing / bird / airliner = wingspan (bird: with the wings level, i.e. sin(flap_phase_rad) = 0).
+    fixed_wing / bird / airliner = wingspan (bird: with the wings level, i.e. sin(flap_phase_rad) = 0);
+    helicopter = main rotor diameter (``main_blades`` blades; the tail rotor turns HELI_TAIL_GEAR x faster).
     ``rotor_angle_rad`` turns the props (rotor i at base_i + rotor_spin_signs(kind)[i] * rotor_angle_rad);
     ``flap_phase_rad`` sets the bird wing dihedral BIRD_FLAP_AMPLITUDE_RAD * sin(flap_phase_rad).
     """
@@ -595,6 +649,10 @@ def build_asset(kind: str, size_m: float, *, flap_phase_rad: float = 0.0,
         raw = _fixed_wing(rot)
     elif kind == "bird":
         raw = _bird(flap)
+    elif kind == "helicopter":
+        if isinstance(main_blades, bool) or not isinstance(main_blades, int) or not 2 <= main_blades <= 8:
+            raise ValueError(f"main_blades must be an integer in [2, 8], got {main_blades!r}")
+        raw = _helicopter(rot, main_blades)
     else:
         raw = _airliner()
     return [_part(name, role, (v * s, f)) for name, role, (v, f) in raw]

@@ -26,6 +26,7 @@ _MATERIALS: dict[str, Material] = {
     "tail": Material(rgb_reflectance=(0.7, 0.7, 0.72), emissivity=0.85),
     "engine": Material(rgb_reflectance=(0.5, 0.5, 0.52), emissivity=0.6),
     "head": Material(rgb_reflectance=(0.2, 0.18, 0.15), emissivity=0.95),
+    "exhaust": Material(rgb_reflectance=(0.12, 0.11, 0.1), emissivity=0.8),
     "feather": Material(rgb_reflectance=(0.25, 0.22, 0.18), emissivity=0.95),
 }
 
@@ -35,6 +36,9 @@ _OFFSETS_K: dict[str, dict[str, float]] = {
     "fixed_wing": {"fuselage": 4.0, "wing": 1.0, "tail": 1.0, "motor": 30.0, "prop": 1.0, "body": 4.0},
     "bird": {"body": 4.0, "head": 6.0, "feather": 2.2, "wing": 2.3},
     "airliner": {"fuselage": -2.0, "wing": -3.0, "tail": -3.0, "engine": 80.0},
+    # turboshaft: exhaust duct metal a few hundred kelvin above air, warm cowling, sun-warmed cabin
+    # (docs/PHYSICS.md "Helicopter")
+    "helicopter": {"fuselage": 3.0, "tail": 1.0, "engine": 35.0, "exhaust": 200.0, "prop": 0.5, "body": 2.0},
 }
 
 _MATERIAL_OVERRIDES: dict[str, dict[str, Material]] = {

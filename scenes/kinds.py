@@ -7,7 +7,7 @@ Sizes are overall span in metres: the size a sampled target of that kind gets (b
 from __future__ import annotations
 
 #: every target kind a scene may hold (the schema's ``TargetKind``; ``scenes.assets.KINDS``)
-TARGET_KINDS = ("quadcopter", "hexacopter", "fixed_wing", "bird", "airliner")
+TARGET_KINDS = ("quadcopter", "hexacopter", "fixed_wing", "bird", "airliner", "helicopter")
 #: the kinds that count as a drone (label "Drone", rotor/engine audio, a radio link)
 DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
 #: nominal overall span (m) of each drone kind

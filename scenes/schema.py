@@ -9,11 +9,13 @@ import datetime as dt
 import math
 from typing import Annotated, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from scenes.terrain_assets import check_asset
 
 SCHEMA_VERSION = 1
 
-TargetKind = Literal["quadcopter", "hexacopter", "fixed_wing", "bird", "airliner"]
+TargetKind = Literal["quadcopter", "hexacopter", "fixed_wing", "bird", "airliner", "helicopter"]
 Vec3 = tuple[float, float, float]
 RGB = tuple[
     Annotated[float, Field(ge=0.0, le=1.0)],
@@ -107,6 +109,13 @@ class Flyby(_Model):
 Trajectory = Annotated[Union[Waypoints, Hover, Orbit, Flyby], Field(discriminator="kind")]
 
 
+class HelicopterRotor(_Model):
+    """A helicopter's main rotor (diameter = the target's size_m); the tail rotor is geared to it."""
+
+    main_blades: int = Field(default=4, ge=2, le=8)
+    main_rpm: float = Field(default=400.0, gt=0.0, le=1000.0, description="typical light helicopters: 350-550 rpm")
+
+
 class Target(_Model):
     name: str = Field(min_length=1)
     kind: TargetKind
@@ -115,6 +124,15 @@ class Target(_Model):
     materials: dict[str, Material] = Field(default_factory=dict, description="per-role overrides")
     thermal: Thermal = Field(default_factory=Thermal)
     wingbeat_hz: float = Field(default=4.0, gt=0.0, le=30.0, description="birds only")
+    rotor: HelicopterRotor | None = Field(default=None, description="helicopters only (required for them)")
+
+    @model_validator(mode="after")
+    def _rotor(self) -> "Target":
+        if self.kind == "helicopter" and self.rotor is None:
+            raise ValueError("rotor: a helicopter needs a main rotor, e.g. rotor: {main_blades: 4, main_rpm: 400}")
+        if self.kind != "helicopter" and self.rotor is not None:
+            raise ValueError(f"rotor: only helicopters take a rotor block (kind is {self.kind!r})")
+        return self
 
 
 class Sun(_Model):
@@ -308,10 +326,32 @@ class Recording(_Model):
         return self
 
 
+class Tracking(_Model):
+    """A pan-tilt tracker's imperfections (with ``track_target``; None = perfect centring).
+
+    The commanded pointing is the target direction plus a smooth random error (rms error_deg per
+    axis, correlation time error_period_s); the head follows the command through a first-order lag
+    (lag_s). Track losses arrive at loss_rate_hz; during a loss (loss_s seconds, drawn in the range)
+    the head holds its last pointing, then re-acquires through the lag. Seeded per scene."""
+
+    lag_s: float = Field(default=0.3, ge=0.0, le=10.0)
+    error_deg: float = Field(default=0.2, ge=0.0, le=20.0)
+    error_period_s: float = Field(default=1.5, gt=0.0, le=60.0)
+    loss_rate_hz: float = Field(default=0.0, ge=0.0, le=5.0)
+    loss_s: tuple[Annotated[float, Field(gt=0.0, le=60.0)], Annotated[float, Field(gt=0.0, le=60.0)]] = (0.5, 2.0)
+
+    @model_validator(mode="after")
+    def _loss_order(self) -> "Tracking":
+        if self.loss_s[0] > self.loss_s[1]:
+            raise ValueError(f"loss_s must be [min, max] with min <= max, got {list(self.loss_s)}")
+        return self
+
+
 class CameraRig(_Model):
     position_m: Vec3 = (0.0, 0.0, 1.5)
     look_at_m: Vec3 | None = None
     track_target: str | None = None
+    tracking: Tracking | None = Field(default=None, description="pan-tilt lag, error and losses (with track_target)")
     rgb: RgbCamera = Field(default_factory=RgbCamera)
     thermal: ThermalCamera = Field(default_factory=ThermalCamera)
     thermal_offset: CameraOffset = Field(default_factory=CameraOffset)
@@ -322,6 +362,8 @@ class CameraRig(_Model):
     def _pointing(self) -> "CameraRig":
         if (self.look_at_m is None) == (self.track_target is None):
             raise ValueError("give exactly one of look_at_m (fixed camera) or track_target (pan/tilt)")
+        if self.tracking is not None and self.track_target is None:
+            raise ValueError("tracking needs track_target (a fixed camera does not track)")
         if self.look_at_m is not None:
             d = [a - b for a, b in zip(self.look_at_m, self.position_m)]
             length = sum(v * v for v in d) ** 0.5
@@ -332,6 +374,132 @@ class CameraRig(_Model):
                 raise ValueError(f"look_at_m {list(self.look_at_m)} is straight above/below position_m "
                                  f"{list(self.position_m)}: the camera's up direction is undefined (tilt it slightly)")
         return self
+
+
+class TreeLine(_Model):
+    """A tree line: a band of canopy at distance_m from the camera rig between two compass azimuths
+    (clockwise from north = +y), height_m tall (crowns vary by +-height_jitter)."""
+
+    asset: str = "deciduous"
+    distance_m: float = Field(gt=5.0, le=20000.0)
+    azimuth_deg: tuple[float, float]
+    height_m: float | None = Field(default=None, gt=0.0, le=100.0, description="None = the asset's height")
+    height_jitter: float = Field(default=0.3, ge=0.0, le=0.9)
+
+    @field_validator("asset")
+    @classmethod
+    def _asset(cls, v: str) -> str:
+        return check_asset(v, "trees")
+
+    @model_validator(mode="after")
+    def _span(self) -> "TreeLine":
+        a, b = self.azimuth_deg
+        if not 0.0 < b - a <= 360.0:
+            raise ValueError(f"azimuth_deg must be [from, to] with 0 < to - from <= 360, got {[a, b]}")
+        return self
+
+
+class Structure(_Model):
+    """A building or mast at distance_m and compass azimuth_deg from the rig (sizes None = the asset's)."""
+
+    asset: str
+    distance_m: float = Field(gt=5.0, le=20000.0)
+    azimuth_deg: float
+    width_m: float | None = Field(default=None, gt=0.0, le=500.0)
+    depth_m: float | None = Field(default=None, gt=0.0, le=500.0)
+    height_m: float | None = Field(default=None, gt=0.0, le=600.0)
+
+
+class Building(Structure):
+    asset: str = "house"
+
+    @field_validator("asset")
+    @classmethod
+    def _asset(cls, v: str) -> str:
+        return check_asset(v, "building")
+
+
+class Mast(Structure):
+    asset: str = "lattice_mast"
+
+    @field_validator("asset")
+    @classmethod
+    def _asset(cls, v: str) -> str:
+        return check_asset(v, "mast")
+
+
+class ProceduralClutter(_Model):
+    """Seeded horizon clutter added to the listed objects: counts are [min, max] per sequence;
+    objects fall at random azimuths (all around) and distances in the given ranges."""
+
+    tree_lines: tuple[Annotated[int, Field(ge=0, le=20)], Annotated[int, Field(ge=0, le=20)]] = (2, 5)
+    tree_distance_m: tuple[Annotated[float, Field(gt=5.0)], Annotated[float, Field(gt=5.0)]] = (150.0, 2000.0)
+    tree_span_deg: tuple[Annotated[float, Field(gt=0.0, le=360.0)],
+                         Annotated[float, Field(gt=0.0, le=360.0)]] = (20.0, 120.0)
+    tree_assets: list[str] = Field(default_factory=lambda: ["deciduous", "deciduous", "conifer"], min_length=1)
+    buildings: tuple[Annotated[int, Field(ge=0, le=50)], Annotated[int, Field(ge=0, le=50)]] = (0, 4)
+    building_distance_m: tuple[Annotated[float, Field(gt=5.0)], Annotated[float, Field(gt=5.0)]] = (100.0, 1500.0)
+    building_assets: list[str] = Field(default_factory=lambda: ["house", "house", "barn", "block"], min_length=1)
+    masts: tuple[Annotated[int, Field(ge=0, le=20)], Annotated[int, Field(ge=0, le=20)]] = (0, 2)
+    mast_distance_m: tuple[Annotated[float, Field(gt=5.0)], Annotated[float, Field(gt=5.0)]] = (200.0, 2500.0)
+    mast_assets: list[str] = Field(default_factory=lambda: ["lattice_mast", "pole"], min_length=1)
+
+    @field_validator("tree_assets")
+    @classmethod
+    def _trees(cls, v: list[str]) -> list[str]:
+        return [check_asset(a, "trees") for a in v]
+
+    @field_validator("building_assets")
+    @classmethod
+    def _buildings(cls, v: list[str]) -> list[str]:
+        return [check_asset(a, "building") for a in v]
+
+    @field_validator("mast_assets")
+    @classmethod
+    def _masts(cls, v: list[str]) -> list[str]:
+        return [check_asset(a, "mast") for a in v]
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "ProceduralClutter":
+        for name in ("tree_lines", "tree_distance_m", "tree_span_deg", "buildings", "building_distance_m",
+                     "masts", "mast_distance_m"):
+            lo, hi = getattr(self, name)
+            if lo > hi:
+                raise ValueError(f"{name} must be [min, max] with min <= max, got {[lo, hi]}")
+        return self
+
+
+class Terrain(_Model):
+    """The ground and the horizon clutter (off unless a scene gives ``terrain``). The ground is a
+    disc of radius ground_radius_m around the rig, flat or gently rolling (relief_m: rms height of
+    hills a few hundred metres across, zero under the rig); its surface and every object's
+    temperature follow the energy balance of simulator.physics.terrain_thermal (sun, clouds, air);
+    LWIR is emitted (eps L(T)) plus the reflected sky. ``emissivity`` overrides an asset's LWIR
+    emissivity by asset name."""
+
+    ground: str = "grass"
+    ground_radius_m: float = Field(default=3000.0, ge=50.0, le=20000.0)
+    relief_m: float = Field(default=0.0, ge=0.0, le=50.0)
+    tree_lines: list[TreeLine] = Field(default_factory=list)
+    buildings: list[Building] = Field(default_factory=list)
+    masts: list[Mast] = Field(default_factory=list)
+    procedural: ProceduralClutter | None = None
+    emissivity: dict[str, Annotated[float, Field(gt=0.0, le=1.0)]] = Field(default_factory=dict)
+
+    @field_validator("ground")
+    @classmethod
+    def _ground(cls, v: str) -> str:
+        return check_asset(v, "ground")
+
+    @field_validator("emissivity")
+    @classmethod
+    def _known(cls, v: dict[str, float]) -> dict[str, float]:
+        from scenes.terrain_assets import TERRAIN_ASSETS
+
+        for name in v:
+            if name not in TERRAIN_ASSETS:
+                raise ValueError(f"unknown terrain asset {name!r}; known: {', '.join(sorted(TERRAIN_ASSETS))}")
+        return v
 
 
 class Scenario(_Model):
@@ -345,6 +513,7 @@ class Scenario(_Model):
     sky: Sky = Field(default_factory=Sky)
     atmosphere: Atmosphere = Field(default_factory=Atmosphere)
     camera_rig: CameraRig
+    terrain: Terrain | None = Field(default=None, description="ground and horizon clutter; None = sky only")
 
     @model_validator(mode="after")
     def _names(self) -> "Scenario":

@@ -18,6 +18,8 @@ STREAMS = {
     "generation": 7,
     "camera": 8,
     "sim2real": 9,
+    "terrain": 10,
+    "tracking": 11,
     "fusion_init": 99,          # E2 fusion heads' initialisation (evids.experiments.pipeline)
     "detection": 1600,          # the detection experiment (evids.experiments.detection.data)
     "clip_split": 0x5B117,      # E2 train/val/test split of clips (evids.experiments.data)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import base64
 import html
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -101,12 +100,45 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
 
 
 def _audio(run_dir: Path, res: dict[str, Any]) -> str:
-    parts = ["<h3>Audio</h3>", "<details open><summary>audio track (JSON)</summary><pre>" +
-             html.escape(json.dumps({k: v for k, v in res.items() if k != "figure"},
-                                    indent=1)[:20000]) + "</pre></details>"]
+    n = res.get("n_clips", {})
+    parts = ["<h3>Audio: drone vs not drone (helicopter and background)</h3>",
+             f"<p class='note'>Clips: {n.get('calibration')} real calibration, {n.get('evaluation')} real evaluation, "
+             f"{n.get('synthetic')} synthetic; 1 s log-mel windows; training seeds {res.get('seeds')}; ROC-AUC and "
+             "balanced accuracy on the evaluation half, mean over seeds, 95 % clip-bootstrap intervals.</p>"]
+    for model, r in res.get("classifier", {}).items():
+        rows = []
+        for cond, v in r.items():
+            if not isinstance(v, dict):
+                continue
+            ci, bci = v.get("roc_auc_ci95", [None, None]), v.get("balanced_accuracy_ci95", [None, None])
+            heli = v.get("helicopter_called_drone")
+            rows.append([html.escape(v.get("description", cond)), f"{v['roc_auc']:.3f} [{ci[0]:.3f}, {ci[1]:.3f}]",
+                         f"{v['balanced_accuracy']:.3f} [{bci[0]:.3f}, {bci[1]:.3f}]",
+                         "&ndash;" if heli is None else f"{100 * heli:.0f} %"])
+        parts.append(_table([f"{model}: condition", "ROC-AUC [95 % CI]", "balanced accuracy",
+                             "helicopter windows called drone"], rows))
+        comp = []
+        for key, label in (("ratio_synthetic_over_real_auc", "ratio (b)/(a) AUC"),
+                           ("synthetic_plus_real_gain_auc", "(c) - (a) AUC"),
+                           ("few_shot_gain_auc", "(d+) - (d) AUC")):
+            if key not in r:
+                continue
+            ci = r.get({"ratio_synthetic_over_real_auc": "ratio_ci95",
+                        "synthetic_plus_real_gain_auc": "synthetic_plus_real_gain_ci95",
+                        "few_shot_gain_auc": "few_shot_gain_ci95"}[key], [float("nan")] * 2)
+            mde = r.get(key.replace("_auc", "_mde"))
+            comp.append([label, f"{r[key]:+.3f} [{ci[0]:+.3f}, {ci[1]:+.3f}]"
+                         + (f" (MDE {mde:.3f})" if mde is not None else "")])
+        parts.append(_table(["comparison", "estimate [95 % CI]"], comp))
+    inside = res.get("statistics_inside_real_iqr", {})
+    if inside:
+        parts.append("<p class='note'>Spectral statistics with the synthetic median inside the real evaluation half's "
+                     "IQR: "
+                     + ", ".join(f"{k} {v['inside']} of {v['of']}" for k, v in inside.items())
+                     + " (all values in sim2real.json).</p>")
     fig = res.get("figure")
     if fig:
-        parts.append(_sheet(run_dir, Path(fig).name, "spectrograms, real | synthetic per class"))
+        parts.append(_sheet(run_dir, Path(fig).name, "spectrograms, real (calibration half) | synthetic per class"))
     return "\n".join(parts)
 
 

@@ -16,14 +16,15 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M
 from scenes.loader import GENERATION_DIR
-from scenes.schema import Flyby, Hover, Orbit, Scenario, Target, Waypoints
+from scenes.schema import Flyby, Hover, Orbit, Scenario, Target, Terrain, Waypoints
 from simulator.seeding import rng_for
 
 SPLITS = ("train", "val", "test")
-DISTRACTOR_KINDS = ("bird", "airliner")
+DISTRACTOR_KINDS = ("bird", "airliner", "helicopter")
 
 # sub-streams of the "generation" stream per sequence (never renumber: it would change datasets)
 _S_PRESET, _S_SEED, _S_TARGET, _S_TRAJ, _S_SUN, _S_AIR, _S_PARTS, _S_CAMERA, _S_DISTRACT = range(1, 10)
+_S_BINS, _S_FOV, _S_MODE, _S_CLOUDS, _S_ELEV = range(10, 15)   # scene-realism fields (issue 23)
 _SPLIT_TAG = 1000
 
 
@@ -68,6 +69,13 @@ class MixtureEntry(_Model):
 TrajectoryKind = Literal["hover", "flyby", "orbit", "waypoints"]
 
 
+class DistanceBin(_Model):
+    """One distance bin of a per-class distance distribution: drawn with probability weight / sum."""
+
+    weight: float = Field(gt=0.0)
+    range_m: Range
+
+
 class Randomisation(_Model):
     """Ranges applied on top of each mixture scenario; a field left null keeps the preset's value.
 
@@ -97,7 +105,32 @@ class Randomisation(_Model):
     camera_pitch_deg: Range | None = Field(default=None, description="thermal-to-RGB pitch offset")
     camera_translation_m: Range | None = Field(default=None, description="thermal-to-RGB baseline along x")
     distractors: tuple[Annotated[int, Field(ge=0, le=10)], Annotated[int, Field(ge=0, le=10)]] = (0, 0)
-    distractor_kinds: list[Literal["bird", "airliner"]] = Field(default_factory=lambda: ["bird"], min_length=1)
+    distractor_kinds: list[Literal["bird", "airliner", "helicopter"]] = Field(default_factory=lambda: ["bird"],
+                                                                              min_length=1)
+    # scene realism (issue 23); every field left null keeps the draws and outputs of older configs
+    distance_bins: list[DistanceBin] | None = Field(default=None, min_length=1,
+                                                    description="replaces range_m: a weighted mixture of distance "
+                                                                "ranges")
+    hfov_deg: Range | None = Field(default=None, description="fixed RGB field of view (replaces target_px)")
+    elevation_fov_fraction: Range | None = Field(
+        default=None,
+        description="replaces elevation_deg: the drone's elevation above the horizon as a fraction of the "
+                                  "thermal camera's vertical field of view (0.35 puts the horizon 0.35 frame heights "
+                                  "below a centred drone)")
+    fixed_camera_fraction: float = Field(default=0.0, ge=0.0, le=1.0,
+                                         description="share of sequences with a fixed camera (targets enter and leave)")
+    fixed_camera_offset_deg: Range = Field(default_factory=lambda: Range(min=-8.0, max=8.0),
+                                           description="fixed camera: azimuth offset of the optical axis from the "
+                                                       "drone's centre")
+    camera_elevation_deg: Range | None = Field(default=None,
+                                               description="fixed camera: optical-axis elevation (null: the drone's)")
+    tracking_lag_s: Range | None = None
+    tracking_error_deg: Range | None = None
+    tracking_error_fov_fraction: Range | None = Field(default=None, description="replaces tracking_error_deg: "
+                                                      "rms pointing error as a fraction of the RGB horizontal FOV")
+    tracking_loss_rate_hz: Range | None = None
+    cloud_cover: Range | None = Field(default=None, description="sky.clouds.coverage, 0-1")
+    terrain: Terrain | None = Field(default=None, description="the ground and horizon clutter of every sequence")
 
     @model_validator(mode="after")
     def _checks(self) -> "Randomisation":
@@ -116,6 +149,17 @@ class Randomisation(_Model):
             raise ValueError("relative_humidity must lie in [0, 1]")
         if self.sun_elevation_deg is not None and (self.sun_elevation_deg.min < -90 or self.sun_elevation_deg.max > 90):
             raise ValueError("sun_elevation_deg must lie in [-90, 90]")
+        if self.cloud_cover is not None and (self.cloud_cover.min < 0 or self.cloud_cover.max > 1):
+            raise ValueError(f"cloud_cover must lie in [0, 1], got [{self.cloud_cover.min}, {self.cloud_cover.max}]")
+        for b in self.distance_bins or []:
+            if b.range_m.min <= 0:
+                raise ValueError(f"distance_bins range_m must be > 0, got [{b.range_m.min}, {b.range_m.max}]")
+        for name in ("hfov_deg", "tracking_lag_s", "tracking_error_deg", "tracking_loss_rate_hz",
+                     "elevation_fov_fraction",
+                     "tracking_error_fov_fraction"):
+            value = getattr(self, name)
+            if value is not None and (value.min < 0 or (name == "hfov_deg" and not 0 < value.min <= value.max < 170)):
+                raise ValueError(f"{name} out of range, got [{value.min}, {value.max}]")
         for name in ("speed_mps", "target_px", "target_size_scale"):
             value = getattr(self, name)
             if value is not None and value.min <= 0:
@@ -299,9 +343,12 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
 
     rig = data["camera_rig"]
     cam_pos = np.asarray(rig["position_m"], dtype=np.float64)
-    if r.range_m is not None or r.trajectory_kinds is not None:
+    if r.range_m is not None or r.trajectory_kinds is not None or r.distance_bins is not None:
         rng = rng_for(seed, "generation", index, _S_TRAJ)
-        if r.range_m is not None:
+        if r.distance_bins is not None:
+            rng.random()   # keeps the later draws where a range_m config has them
+            distance = _draw_bin(r.distance_bins, rng_for(seed, "generation", index, _S_BINS))
+        elif r.range_m is not None:
             distance = r.range_m.draw(rng)
         else:
             distance = float(np.linalg.norm(np.asarray(_trajectory_anchor(base.targets[p])) - cam_pos))
@@ -317,11 +364,22 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
         width = config.image_size[0]
         hfov = math.degrees(targets[p]["size_m"] / distance * width / r.target_px.draw(rng))
         hfov = float(min(60.0, max(0.5, hfov)))
+        if r.hfov_deg is not None:
+            hfov = r.hfov_deg.draw(rng_for(seed, "generation", index, _S_FOV))
         ratio = base.camera_rig.thermal.hfov_deg / base.camera_rig.rgb.hfov_deg
         rig["track_target"] = targets[p]["name"]
         rig["look_at_m"] = None
         rig["rgb"]["hfov_deg"] = round(hfov, 4)
         rig["thermal"]["hfov_deg"] = round(min(60.0, hfov * ratio), 4)
+        if r.elevation_fov_fraction is not None:
+            tw, th_px = config.thermal_image_size or config.image_size
+            vfov = 2 * math.degrees(math.atan(math.tan(math.radians(rig["thermal"]["hfov_deg"]) / 2) * th_px / tw))
+            new_el = r.elevation_fov_fraction.draw(rng_for(seed, "generation", index, _S_ELEV)) * vfov
+            anchor = np.asarray(_trajectory_anchor(Target.model_validate(targets[p])), dtype=np.float64)
+            wanted_z = max(cam_pos[2] + distance * math.sin(math.radians(new_el)), 3.0)
+            targets[p]["trajectory"] = _shift_z(targets[p]["trajectory"], wanted_z - anchor[2])
+            elevation = new_el
+        _camera_mode(r, rig, targets[p], cam_pos, bearing, elevation, rng_for(seed, "generation", index, _S_MODE))
 
     rng = rng_for(seed, "generation", index, _S_SUN)
     if r.time_of_day_h is not None:
@@ -340,6 +398,14 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
         if r.sun_azimuth_deg is not None:
             sun["azimuth_deg"] = round(r.sun_azimuth_deg.draw(rng), 4)
         data["sky"]["sun"] = {"elevation_deg": sun["elevation_deg"], "azimuth_deg": sun["azimuth_deg"]}
+
+    if r.cloud_cover is not None:
+        cover = round(r.cloud_cover.draw(rng_for(seed, "generation", index, _S_CLOUDS)), 4)
+        clouds = dict(data["sky"].get("clouds") or {})
+        clouds["coverage"] = cover
+        data["sky"]["clouds"] = clouds
+    if r.terrain is not None:
+        data["terrain"] = r.terrain.model_dump(mode="python")
 
     rng = rng_for(seed, "generation", index, _S_AIR)
     air = data["atmosphere"]
@@ -398,6 +464,9 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
             if kind == "bird":
                 d = dist * float(rng.uniform(0.4, 0.9))
                 size, speed = float(rng.uniform(0.3, 0.8)), float(rng.uniform(4.0, 10.0))
+            elif kind == "helicopter":
+                d = float(rng.uniform(300.0, 2500.0))
+                size, speed = float(rng.uniform(8.0, 14.0)), float(rng.uniform(15.0, 60.0))
             else:
                 d = float(rng.uniform(3000.0, 9000.0))
                 size, speed = float(rng.uniform(30.0, 60.0)), float(rng.uniform(100.0, 220.0))
@@ -411,6 +480,8 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
             targets.append({"name": name, "kind": kind, "size_m": round(size, 3),
                             "trajectory": traj.model_dump(mode="python"),
                             "wingbeat_hz": round(float(rng.uniform(2.5, 6.0)), 3) if kind == "bird" else 4.0})
+            if kind == "helicopter":
+                targets[-1]["rotor"] = {"main_blades": 4, "main_rpm": 400.0}
 
     w, h = config.image_size
     tw, th = config.thermal_image_size or config.image_size
@@ -419,6 +490,53 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
     from scenes.loader import scenario_from_dict
 
     return source, scenario_from_dict(data, source=f"{config.name}: sequence {index}")
+
+
+def _shift_z(trajectory: dict, dz: float) -> dict:
+    """The same trajectory moved up by dz metres."""
+    t = dict(trajectory)
+    for key in ("center_m", "start_m"):
+        if t.get(key) is not None:
+            x, y, z = t[key]
+            t[key] = (x, y, round(z + dz, 3))
+    if t.get("points_m") is not None:
+        t["points_m"] = [(x, y, round(z + dz, 3)) for x, y, z in t["points_m"]]
+    return t
+
+
+def _draw_bin(bins: list[DistanceBin], rng: np.random.Generator) -> float:
+    """A distance from a weighted mixture of uniform ranges."""
+    weights = np.array([b.weight for b in bins], dtype=np.float64)
+    k = int(np.searchsorted(np.cumsum(weights) / weights.sum(), rng.random(), side="right"))
+    return bins[min(k, len(bins) - 1)].range_m.draw(rng)
+
+
+def _camera_mode(r: Randomisation, rig: dict, target: dict, cam_pos: np.ndarray, bearing: float, elevation: float,
+                 rng: np.random.Generator) -> None:
+    """Fixed camera (a share of sequences) pointed near the drone's centre, or a tracking camera with
+    drawn lag / error / losses. Draws a fixed number of values so each field keeps its stream."""
+    u, off, el, lag, err, loss = rng.random(6)
+    if u < r.fixed_camera_fraction:
+        az = bearing + r.fixed_camera_offset_deg.min + (r.fixed_camera_offset_deg.max
+                                                        - r.fixed_camera_offset_deg.min) * off
+        axis_el = elevation if r.camera_elevation_deg is None else \
+            r.camera_elevation_deg.min + (r.camera_elevation_deg.max - r.camera_elevation_deg.min) * el
+        rig["look_at_m"] = tuple(round(float(v), 4) for v in cam_pos + 100.0 * _direction(az, axis_el))
+        rig["track_target"] = None
+        rig["tracking"] = None
+        return
+    if r.tracking_lag_s is None and r.tracking_error_deg is None and r.tracking_loss_rate_hz is None \
+            and r.tracking_error_fov_fraction is None:
+        return
+
+    def pick(value: Range | None, draw: float, default: float) -> float:
+        return default if value is None else round(value.min + (value.max - value.min) * draw, 4)
+
+    error = pick(r.tracking_error_deg, err, 0.0)
+    if r.tracking_error_fov_fraction is not None:
+        error = round(pick(r.tracking_error_fov_fraction, err, 0.0) * float(rig["rgb"]["hfov_deg"]), 4)
+    rig["tracking"] = {"lag_s": pick(r.tracking_lag_s, lag, 0.0), "error_deg": error,
+                       "loss_rate_hz": pick(r.tracking_loss_rate_hz, loss, 0.0)}
 
 
 def _trajectory_anchor(target: Target) -> tuple[float, float, float]:

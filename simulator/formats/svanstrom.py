@@ -103,6 +103,16 @@ class _FolderSource:
     def list(self) -> list[str]:
         return sorted(p.relative_to(self.data_dir).as_posix() for p in self.data_dir.rglob("*") if p.is_file())
 
+    def identity(self) -> str:
+        """Changes when any file is added, removed, resized or touched."""
+        import hashlib
+
+        h = hashlib.sha256()
+        for rel in self.list():
+            st = (self.data_dir / rel).stat()
+            h.update(f"{rel}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
+        return "folder:" + h.hexdigest()
+
     def read(self, rel: str) -> bytes:
         try:
             return (self.data_dir / rel).read_bytes()
@@ -128,6 +138,10 @@ class _GitMirrorSource:
             raise FormatError(self.git_dir, "", "reading a git mirror needs the `git` command") from None
         except subprocess.CalledProcessError as exc:
             raise FormatError(self.git_dir, "", f"git failed: {exc.stderr.decode(errors='replace').strip()}") from None
+
+    def identity(self) -> str:
+        """The commit the mirror's ``rev`` points to."""
+        return "git:" + self._git("rev-parse", self.rev).decode().strip()
 
     def list(self) -> list[str]:
         out = self._git("ls-tree", "-r", "--name-only", "-z", self.rev, "--", self.prefix.rstrip("/"))
@@ -251,6 +265,11 @@ class SvanstromBenchmark:
                 c = Clip(c.sensor, c.cls, c.number, c.media, c.labels, row.get("distance_bin"), row.get("drone_type"))
             out.append(c)
         return sorted(out, key=lambda c: (c.cls, c.number))
+
+    def identity(self) -> str:
+        """A string that changes when the copy's content may have changed (git commit, or the folder's
+        file names, sizes and modification times): the key of caches derived from it."""
+        return self._src.identity()
 
     # -- reading ---------------------------------------------------------------------------------
     def read_bytes(self, rel: str) -> bytes:

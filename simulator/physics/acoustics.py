@@ -34,6 +34,7 @@ _GRID_STEP_S = 1e-3               # emission-time grid used to invert t = tau + 
 AMBIENT_SOURCE_INDEX = 1000       # rng index base of ambient beds (targets use 0, 1, ...)
 MOTOR_POLE_PAIRS = 7              # 12N14P outrunner: electrical frequency = 7 x shaft rate
 N_BLADE_HARMONICS = 10
+MAX_BLADE_HARMONICS = 30          # cap of the randomised line count (synthesis cost ~ lines)
 
 # relative source levels at 1 m (dB SPL, unweighted) for the reference size: they fix the tonal /
 # broadband balance; the absolute level comes from the sound power (sound_power_dba); docs/AUDIO_RF.md
@@ -41,6 +42,59 @@ _TONAL_DB_1M = {"quadcopter": 78.0, "hexacopter": 81.0, "fixed_wing": 80.0}
 _BROADBAND_DB_1M = {"quadcopter": 72.0, "hexacopter": 75.0, "fixed_wing": 74.0}
 BROADBAND_SHAPE = (300.0, 6000.0, -3.0)   # rotor broadband: band edges (Hz) and tilt (dB/octave)
 BPF_MODULATION = 0.3                      # broadband amplitude modulation at the blade-passing frequency
+
+
+@dataclass(frozen=True)
+class RotorNoise:
+    """Rotor-noise parameters that physics leaves open. The defaults are the model before issue 24
+    (clean coherent lines 6 dB over one stationary broadband); :func:`draw_rotor_noise` randomises them
+    over documented ranges (docs/AUDIO_RF.md), which is what :func:`synthesize_target` uses by default."""
+
+    harmonic_decay: float = 0.8             # blade-passing line amplitude ~ k^-decay
+    harmonic_top_hz: float | None = None    # lines up to this frequency (None: N_BLADE_HARMONICS lines)
+    broadband_offset_db: float | None = None  # broadband minus tonal at 1 m (None: the kind's 78/72 dB table)
+    broadband_shape: tuple[float, float, float] = BROADBAND_SHAPE
+    bpf_modulation: float = BPF_MODULATION
+    imbalance: float = 0.18                 # shaft-rate line, re the first BPF line's amplitude
+    motor_lines: tuple[float, float] = (0.25, 0.12)   # lines at 1x and 2x the electrical frequency
+    pole_pairs: int = MOTOR_POLE_PAIRS
+    pwm_hz: float | None = None             # ESC PWM switching frequency (a steady whine), None = off
+    pwm_level: float = 0.0                  # its amplitude re the first BPF line
+    amplitude_fluctuation_db: float = 0.0   # slow log-normal level fluctuation (turbulent propagation, manoeuvres)
+    amplitude_fluctuation_hz: float = 1.0   # its corner frequency
+
+
+LEGACY_ROTOR_NOISE = RotorNoise()
+# ranges of draw_rotor_noise (uniform unless said): see docs/AUDIO_RF.md "Rotor noise (issue 24)"
+ROTOR_NOISE_RANGES = {
+    "harmonic_decay": (0.3, 1.2), "harmonic_top_hz": (3000.0, 10000.0), "broadband_offset_db": (0.0, 10.0),
+    "broadband_low_hz": (100.0, 400.0), "broadband_high_hz": (13000.0, 16000.0), "broadband_tilt_db": (-5.0, -2.5),
+    "bpf_modulation": (0.1, 0.6), "imbalance": (0.02, 0.15), "motor_line": (0.02, 0.15),
+    "pwm_hz": (8000.0, 12000.0, 16000.0), "pwm_level": (0.0, 0.08), "amplitude_fluctuation_db": (1.0, 4.0),
+    "amplitude_fluctuation_hz": (0.3, 3.0),
+}
+
+
+def draw_rotor_noise(rng: np.random.Generator) -> RotorNoise:
+    """Rotor-noise parameters drawn from ``ROTOR_NOISE_RANGES`` (domain randomisation, per drone)."""
+    r = ROTOR_NOISE_RANGES
+
+    def u(name: str) -> float:
+        return float(rng.uniform(*r[name]))
+
+    decay, top, offset = u("harmonic_decay"), u("harmonic_top_hz"), u("broadband_offset_db")
+    shape = (u("broadband_low_hz"), u("broadband_high_hz"), u("broadband_tilt_db"))
+    bpf_mod, imbalance = u("bpf_modulation"), u("imbalance")
+    motor = (u("motor_line"), u("motor_line"))
+    pole_pairs = int(rng.choice([6, 7]))
+    pwm = float(rng.choice(r["pwm_hz"])) if rng.random() < 0.5 else None
+    pwm_level = u("pwm_level")
+    fluct_db, fluct_hz = u("amplitude_fluctuation_db"), u("amplitude_fluctuation_hz")
+    return RotorNoise(harmonic_decay=decay, harmonic_top_hz=top, broadband_offset_db=offset, broadband_shape=shape,
+                      bpf_modulation=bpf_mod, imbalance=imbalance, motor_lines=motor, pole_pairs=pole_pairs,
+                      pwm_hz=pwm, pwm_level=pwm_level if pwm else 0.0, amplitude_fluctuation_db=fluct_db,
+                      amplitude_fluctuation_hz=fluct_hz)
+
 SPHERE_DB = 10.0 * np.log10(4.0 * np.pi)  # L_p(1 m) = L_W - 10.99 dB in free field (sphere of 1 m^2 x 4 pi)
 # mass from overall span (kg): multirotor 0.75 kg at 0.45 m (a C1-class folding quad), fixed wing 1.2 kg at 1.5 m
 _MASS_REFERENCE = {"quadcopter": (0.45, 0.75), "hexacopter": (0.45, 0.75), "fixed_wing": (1.5, 1.2)}
@@ -400,7 +454,8 @@ def _harmonic_poly(z: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
 def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_rate_hz: float,
                     rng: np.random.Generator, tonal_db_1m: float, broadband_db_1m: float,
                     hover_rpm: float, *, sound_power_dba: float | None = None,
-                    tonal_gain: np.ndarray | None = None, broadband_gain: np.ndarray | None = None) -> np.ndarray:
+                    tonal_gain: np.ndarray | None = None, broadband_gain: np.ndarray | None = None,
+                    noise: RotorNoise = LEGACY_ROTOR_NOISE) -> np.ndarray:
     """Pressure at 1 m of a set of rotors heard through ``retarded`` (microphone clock).
 
     ``rpm`` (R, N) is each rotor's speed at the emission time of every microphone sample. Each
@@ -412,6 +467,8 @@ def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_r
     ``sound_power_dba`` (L_WA at hover) rescales both parts together (keeping their ratio) so the
     A-weighted level at 1 m, averaged over the sphere, is L_WA - 10 log10(4 pi) at ``hover_rpm``;
     ``tonal_gain``/``broadband_gain`` (N,) are the directivity amplitude factors per sample.
+    ``noise`` sets what physics leaves open (line count and decay, broadband level and shape, BPF
+    modulation, imbalance, motor lines, ESC PWM whine); the default is the pre-issue-24 model.
     """
     rpm = np.atleast_2d(np.asarray(rpm, dtype=np.float64))
     if rpm.size and np.min(rpm) < 0:
@@ -426,22 +483,35 @@ def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_r
     z = np.empty(phase32.shape, dtype=np.complex64)
     z.real = np.cos(phase32)
     z.imag = np.sin(phase32)
-    max_power = max(n_blades * N_BLADE_HARMONICS, 2 * MOTOR_POLE_PAIRS)
+    if noise.harmonic_top_hz is None:
+        n_harm = N_BLADE_HARMONICS
+    else:
+        n_harm = int(np.clip(noise.harmonic_top_hz / max(n_blades * hover_rpm / 60.0, 1.0), 1, MAX_BLADE_HARMONICS))
+    pp = int(noise.pole_pairs)
+    max_power = max(n_blades * n_harm, 2 * pp)
     coeffs = np.zeros((n_rotors, max_power + 1), dtype=np.complex128)
-    k = np.arange(1, N_BLADE_HARMONICS + 1)
-    blade_amp = k ** -0.8 * 10 ** (rng.normal(0.0, 1.5, size=(n_rotors, k.size)) / 20)
+    k = np.arange(1, n_harm + 1)
+    blade_amp = k ** -noise.harmonic_decay * 10 ** (rng.normal(0.0, 1.5, size=(n_rotors, k.size)) / 20)
     coeffs[:, n_blades * k] = blade_amp * np.exp(1j * rng.uniform(0, 2 * np.pi, size=(n_rotors, k.size)))
-    coeffs[:, 1] += 0.18 * np.exp(1j * rng.uniform(0, 2 * np.pi, size=n_rotors))     # imbalance, -15 dB
-    coeffs[:, MOTOR_POLE_PAIRS] += 0.25 * np.exp(1j * rng.uniform(0, 2 * np.pi, size=n_rotors))
-    coeffs[:, 2 * MOTOR_POLE_PAIRS] += 0.12 * np.exp(1j * rng.uniform(0, 2 * np.pi, size=n_rotors))
+    coeffs[:, 1] += noise.imbalance * np.exp(1j * rng.uniform(0, 2 * np.pi, size=n_rotors))   # imbalance
+    coeffs[:, pp] += noise.motor_lines[0] * np.exp(1j * rng.uniform(0, 2 * np.pi, size=n_rotors))
+    coeffs[:, 2 * pp] += noise.motor_lines[1] * np.exp(1j * rng.uniform(0, 2 * np.pi, size=n_rotors))
     # rms of sum_p |c_p| cos(.) per rotor = sqrt(sum |c|^2 / 2); scale so all rotors together give tonal_db_1m
     per_rotor_rms = np.sqrt(np.sum(np.abs(coeffs) ** 2, axis=1) / 2)
+    pwm_amp = noise.pwm_level / max(float(np.sqrt(np.sum(np.abs(coeffs[0]) ** 2) / 2)), 1e-30)
     coeffs *= db_spl_to_pa(tonal_db_1m) / np.sqrt(n_rotors) / per_rotor_rms[:, None]
+    pwm_pa = pwm_amp * db_spl_to_pa(tonal_db_1m) / np.sqrt(n_rotors)
+    if noise.broadband_offset_db is not None:
+        broadband_db_1m = tonal_db_1m + noise.broadband_offset_db
     broadband_pa = db_spl_to_pa(broadband_db_1m)
+    pwm_on = noise.pwm_hz is not None and pwm_pa > 0 and noise.pwm_hz < 0.45 * sample_rate_hz
     if sound_power_dba is not None:
-        scale = _sound_power_scale(coeffs, broadband_pa, n_blades, hover_rpm, sound_power_dba)
+        extra = n_rotors * pwm_pa ** 2 / 2 * 10 ** (float(a_weighting_db(noise.pwm_hz)) / 10) if pwm_on else 0.0
+        scale = _sound_power_scale(coeffs, broadband_pa, n_blades, hover_rpm, sound_power_dba,
+                                   noise.broadband_shape, noise.bpf_modulation, extra)
         coeffs *= scale
         broadband_pa *= scale
+        pwm_pa *= scale
     # only powers of z that lie below Nyquist at the highest shaft rate are kept
     max_shaft_hz = float(np.max(shaft_hz_rx)) if n else 0.0
     if max_shaft_hz > 0:
@@ -449,9 +519,13 @@ def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_r
         coeffs[:, ~keep] = 0
     thrust = (rpm / max(hover_rpm, 1e-9)) ** 2
     tonal = np.sum(_harmonic_poly(z, coeffs.astype(np.complex64)) * thrust, axis=0, dtype=np.float64)
-    noise = _source_noise(rng, retarded, sample_rate_hz, *BROADBAND_SHAPE)
-    bpf_mod = 1.0 + BPF_MODULATION * np.real(z[0] ** n_blades)
-    broadband = noise * bpf_mod * np.mean(thrust, axis=0) ** 1.25 * broadband_pa
+    hiss = _source_noise(rng, retarded, sample_rate_hz, *noise.broadband_shape)
+    bpf_mod = 1.0 + noise.bpf_modulation * np.real(z[0] ** n_blades)
+    broadband = hiss * bpf_mod * np.mean(thrust, axis=0) ** 1.25 * broadband_pa
+    if pwm_on:                          # ESC switching whine: fixed frequency, every rotor, random phases
+        phases = rng.uniform(0, 2 * np.pi, size=n_rotors)
+        tonal = tonal + pwm_pa * np.sum(np.cos(2 * np.pi * noise.pwm_hz * retarded.tau_s[None, :] + phases[:, None]),
+                                        axis=0)
     if tonal_gain is not None:
         tonal = tonal * tonal_gain
     if broadband_gain is not None:
@@ -460,7 +534,8 @@ def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_r
 
 
 def _sound_power_scale(coeffs: np.ndarray, broadband_pa: float, n_blades: int, hover_rpm: float,
-                       sound_power_dba: float) -> float:
+                       sound_power_dba: float, broadband_shape: tuple[float, float, float] = BROADBAND_SHAPE,
+                       bpf_modulation: float = BPF_MODULATION, extra_tonal_ms: float = 0.0) -> float:
     """Amplitude factor that gives A-weighted mean square (L_WA - 10 lg 4 pi at 1 m) at hover.
 
     Tonal: sum over lines |c_p|^2 / 2 x A(p f_shaft)^2. Broadband: rms^2 x (1 + m^2 / 2) (BPF
@@ -469,11 +544,11 @@ def _sound_power_scale(coeffs: np.ndarray, broadband_pa: float, n_blades: int, h
     shaft_hz = hover_rpm / 60.0
     powers = np.arange(coeffs.shape[1])
     a_lin = 10 ** (a_weighting_db(np.maximum(powers * shaft_hz, 1e-3)) / 10)
-    tonal_ms = float(np.sum(np.abs(coeffs) ** 2 / 2 * a_lin[None, :]))
+    tonal_ms = float(np.sum(np.abs(coeffs) ** 2 / 2 * a_lin[None, :])) + extra_tonal_ms
     f = np.arange(1.0, AUDIO_BAND_HZ)
-    shape = _shaped_gain(f, *BROADBAND_SHAPE) ** 2
+    shape = _shaped_gain(f, *broadband_shape) ** 2
     share = float(np.sum(shape * 10 ** (a_weighting_db(f) / 10)) / np.sum(shape))
-    broad_ms = broadband_pa ** 2 * (1 + BPF_MODULATION ** 2 / 2) * share
+    broad_ms = broadband_pa ** 2 * (1 + bpf_modulation ** 2 / 2) * share
     target_ms = db_spl_to_pa(sound_power_dba - SPHERE_DB) ** 2
     return float(np.sqrt(target_ms / max(tonal_ms + broad_ms, 1e-300)))
 
@@ -520,6 +595,60 @@ def airliner_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random
     return jet * db_spl_to_pa(AIRLINER_DB_1M)
 
 
+# Helicopter (light turbine helicopter, e.g. a 5-8 m rotor radius): main rotor at a tip speed of
+# ~200-220 m/s (BPF 10-30 Hz) heard as impulsive thickness/loading noise and blade slap (blade-vortex
+# interaction) with harmonics into the hundreds of Hz, tail rotor BPF 50-130 Hz, turbine whine (a
+# compressor tone 2-8 kHz over broadband) and rotor broadband; a ~300 m flyover is 80-90 dB(A)
+# (ICAO Annex 16 Vol. I chapter 11 limits are 82-89 EPNdB-like levels for light helicopters).
+HELICOPTER_DB_1M = 126.0          # overall unweighted level at 1 m of the sum of the parts below
+HELICOPTER_RANGES = {"radius_m": (4.0, 8.0), "tip_speed_mps": (190.0, 225.0), "main_blades": (2, 3, 4, 5),
+                     "tail_ratio": (4.5, 6.5), "tail_blades": (2, 4), "pulse_ms": (0.5, 2.0),
+                     "thump_db": (-20.0, -10.0), "slap_db": (-12.0, -4.0), "tail_db": (-20.0, -10.0),
+                     "turbine_hz": (2000.0, 8000.0), "turbine_db": (-14.0, -4.0),
+                     "broadband_high_hz": (6000.0, 14000.0)}
+
+
+def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random.Generator) -> np.ndarray:
+    """Pressure at 1 m of a helicopter, parts drawn from ``HELICOPTER_RANGES`` (domain randomisation).
+
+    Rotor broadband 200 Hz-6..14 kHz (-7 dB/octave) modulated at the main BPF is the reference part;
+    main rotor: a train of blade pulses (Gaussian, 0.5-2 ms) at the BPF with per-pass amplitude
+    jitter (-20..-10 dB) and a sharper blade-slap train (-12..-4 dB), tail rotor: lines k x its BPF (k^-1, -20..-10 dB),
+    turbine: 1-16 kHz noise (-2 dB/octave) with a wandering 2-8 kHz tone (-14..-4 dB). Phases run on the emission clock.
+    """
+    r = HELICOPTER_RANGES
+    u = lambda name: float(rng.uniform(*r[name]))  # noqa: E731
+    shaft_hz = u("tip_speed_mps") / (2 * np.pi * u("radius_m"))
+    main_blades = int(rng.choice(r["main_blades"]))
+    bpf = shaft_hz * main_blades
+    tail_bpf = shaft_hz * u("tail_ratio") * int(rng.choice(r["tail_blades"]))
+    tau = retarded.tau_s - float(retarded.tau_s[0])
+    phase = bpf * tau + rng.uniform()
+    frac = phase - np.floor(phase) - 0.5                              # time to the nearest blade pass, in periods
+    width = u("pulse_ms") / 1000.0 * bpf
+    passes = np.floor(phase).astype(np.int64)
+    jitter = 10 ** (rng.normal(0.0, 2.0, size=int(passes.max() - passes.min()) + 2) / 20)
+    pulses = np.exp(-0.5 * (frac / width) ** 2) * jitter[passes - passes.min()]
+    pulses -= pulses.mean()
+    slap = np.exp(-0.5 * (frac / (width * 0.3)) ** 2) * jitter[::-1][passes - passes.min()]
+    slap -= slap.mean()
+    k = np.arange(1, 16)
+    tail = np.sum(k[:, None] ** -1.0 * np.cos(2 * np.pi * k[:, None] * tail_bpf * tau[None, :]
+                                              + rng.uniform(0, 2 * np.pi, size=(k.size, 1))), axis=0)
+    f_turb = u("turbine_hz") * (1 + 0.01 * _smooth_random(rng, tau.size, sample_rate_hz, 0.5))
+    turbine = 0.5 * np.cos(2 * np.pi * np.cumsum(f_turb) / sample_rate_hz) + _source_noise(rng, retarded,
+                                                                                           sample_rate_hz, 1000.0,
+                                                                                           16000.0, -2.0)
+    broad = _source_noise(rng, retarded, sample_rate_hz, 200.0, u("broadband_high_hz"),
+                          -7.0) * (1 + 0.5 * np.cos(2 * np.pi * phase))
+    parts = [(broad, 0.0), (pulses, u("thump_db")), (slap, u("slap_db")), (tail, u("tail_db")),
+             (turbine, u("turbine_db"))]
+    total = np.zeros(tau.size)
+    for x, db in parts:
+        total += x / max(float(np.sqrt(np.mean(x ** 2))), 1e-30) * 10 ** (db / 20)
+    return total * db_spl_to_pa(HELICOPTER_DB_1M) / max(float(np.sqrt(np.mean(total ** 2))), 1e-30)
+
+
 def target_source_levels(kind: str, size_m: float) -> tuple[float, float]:
     """(tonal, broadband) unweighted dB SPL at 1 m of a drone kind, +20 log10 of size / reference size.
 
@@ -549,12 +678,16 @@ def _emission_geometry(track, frame_times_s: np.ndarray, tau_s: np.ndarray, mic_
 def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarray, n_samples: int,
                       sample_rate_hz: float, air_temperature_k: float, relative_humidity: float,
                       rng: np.random.Generator, wingbeat_hz: float = 4.0, *, ground_factor: float | None = None,
-                      sound_power_db: float | None = None, directivity: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                      sound_power_db: float | None = None, directivity: bool = True,
+                      rotor_noise: RotorNoise | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Received pressure (Pa) of one ``TargetTrack`` at the microphone, and its range per sample.
 
     Drones radiate their hover sound power ``sound_power_db`` (L_WA; default :func:`sound_power_dba`
     of kind and size) with the rotor directivity about the body's up axis; ``ground_factor`` (ISO
-    9613-2 G, None = free field) adds the ground effect with heights above z = 0.
+    9613-2 G, None = free field) adds the ground effect with heights above z = 0. ``rotor_noise``
+    None draws the open rotor-noise parameters from ``rng`` (:func:`draw_rotor_noise`); pass
+    ``LEGACY_ROTOR_NOISE`` for the clean pre-issue-24 rotor model. A ``kind`` "helicopter" track
+    (built by hand: the scenario schema has no helicopter target yet) uses :func:`helicopter_signature`.
     """
     from simulator.physics.timeline import rotor_hover_rpm
 
@@ -568,7 +701,9 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
     coarse = np.unique(np.append(np.arange(0, n_samples, GEOMETRY_STEP), n_samples - 1))
     pos_c, up_c, mic_c = _emission_geometry(track, frame_times_s, ret.tau_s[coarse], mic_position_m)
     samples = np.arange(n_samples)
+    fluctuation = None
     if track.kind in DRONE_KINDS:
+        noise = draw_rotor_noise(rng) if rotor_noise is None else rotor_noise
         rpm_frames = np.asarray(track.rotor_rpm, dtype=np.float64)
         _check_nonnegative("rotor_rpm", rpm_frames)
         rpm = np.stack([np.interp(ret.tau_s, frame_times_s, rpm_frames[:, r]) for r in range(rpm_frames.shape[1])])
@@ -579,11 +714,16 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
             gains = tuple(np.interp(samples, coarse, g) for g in rotor_directivity(mic_c - pos_c, up_c))
         src = rotor_signature(rpm, max(int(track.n_blades), 1), ret, sample_rate_hz, rng, tonal_db, broad_db,
                               rotor_hover_rpm(track.kind, track.size_m), sound_power_dba=power,
-                              tonal_gain=gains[0], broadband_gain=gains[1])
+                              tonal_gain=gains[0], broadband_gain=gains[1], noise=noise)
+        if noise.amplitude_fluctuation_db > 0:
+            fluctuation = _level_fluctuation(rng, n_samples, sample_rate_hz, noise.amplitude_fluctuation_db,
+                                             noise.amplitude_fluctuation_hz)
     elif track.kind == "bird":
         src = bird_signature(wingbeat_hz, ret, sample_rate_hz, rng)
     elif track.kind == "airliner":
         src = airliner_signature(ret, sample_rate_hz, rng)
+    elif track.kind == "helicopter":
+        src = helicopter_signature(ret, sample_rate_hz, rng)
     else:
         raise ValueError(f"kind: unknown target kind {track.kind!r}")
     ground = {}
@@ -591,7 +731,18 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
         ground = {"ground_factor": ground_factor, "source_height_m": np.interp(samples, coarse, pos_c[:, 2]),
                   "receiver_height_m": float(np.mean(mic_c[:, 2])),
                   "horizontal_range_m": np.interp(samples, coarse, np.linalg.norm((pos_c - mic_c)[:, :2], axis=-1))}
-    return propagate(src, ret.range_m, sample_rate_hz, air_temperature_k, relative_humidity, **ground), ret.range_m
+    received = propagate(src, ret.range_m, sample_rate_hz, air_temperature_k, relative_humidity, **ground)
+    if fluctuation is not None:
+        received = received * fluctuation
+    return received, ret.range_m
+
+
+def _level_fluctuation(rng: np.random.Generator, n: int, sample_rate_hz: float, std_db: float, corner_hz: float
+                       ) -> np.ndarray:
+    """Slow log-normal gain (std ``std_db`` of the level, low-passed at ``corner_hz``), unit mean square so the
+    sound power stays calibrated: turbulent propagation and manoeuvres make real drone levels wander."""
+    g = 10.0 ** (std_db * _smooth_random(rng, n, sample_rate_hz, corner_hz) / 20.0)
+    return g / max(float(np.sqrt(np.mean(g ** 2))), 1e-30)
 
 
 # --------------------------------------------------------------------------------------------
@@ -608,6 +759,10 @@ class Ambience(BaseModel):
     traffic_db: float | None = Field(default=None, ge=0.0, le=110.0)
     rain_db: float | None = Field(default=None, ge=0.0, le=110.0)
     birdsong_db: float | None = Field(default=None, ge=0.0, le=110.0)
+    residual_db: float | None = Field(default=None, ge=0.0, le=110.0, description=(
+        "distant mixed outdoor sound (far traffic, industry, people): broadband 50 Hz-10 kHz"))
+    rustle_db: float | None = Field(default=None, ge=0.0, le=110.0, description="leaves and grass moved by the wind")
+    aircraft_db: float | None = Field(default=None, ge=0.0, le=110.0, description="a distant aircraft passing")
 
 
 def _scale_to(x: np.ndarray, level_db: float) -> np.ndarray:
@@ -622,8 +777,10 @@ def wind_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: 
 
 
 def traffic_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
-    """Distant road traffic: rumble below ~300 Hz with vehicles passing (bell-shaped swells)."""
-    base = _shaped_noise(rng, n, sample_rate_hz, 30.0, 300.0, -3.0)
+    """Road traffic at 50-500 m: tyre/road and engine noise 40 Hz-2.5 kHz (the EN 1793-3 normalised
+    traffic spectrum peaks near 1 kHz A-weighted, i.e. roughly flat unweighted up to ~1 kHz), with
+    vehicles passing (bell-shaped swells)."""
+    base = _shaped_noise(rng, n, sample_rate_hz, 40.0, 2500.0, -1.5)
     t = np.arange(n) / sample_rate_hz
     duration = n / sample_rate_hz
     passes = rng.uniform(-2.0, duration + 2.0, size=max(1, rng.poisson(0.5 * duration)))
@@ -654,6 +811,34 @@ def birdsong_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_
     return _scale_to(calls, level_db)
 
 
+def residual_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
+    """Residual outdoor sound (ISO 1996-2 'residual sound': what remains without specific sources):
+    broadband 50 Hz-10 kHz with a drawn tilt of -9..-6 dB/octave and a slow drift (4 dB std, 0.3 Hz)."""
+    tilt = float(rng.uniform(-9.0, -6.0))
+    base = _shaped_noise(rng, n, sample_rate_hz, 50.0, 10000.0, tilt)
+    drift = 10 ** (4.0 * _smooth_random(rng, n, sample_rate_hz, 0.3) / 20)
+    return _scale_to(base * drift, level_db)
+
+
+def rustle_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
+    """Vegetation moved by the wind: 400 Hz-10 kHz noise, -6..-3 dB/octave, in gust-driven bursts
+    (the envelope of low-passed noise at ~0.5 Hz) with fast leaf flutter (~8 Hz)."""
+    base = _shaped_noise(rng, n, sample_rate_hz, 400.0, 10000.0, float(rng.uniform(-6.0, -3.0)))
+    gust = np.exp(1.2 * _smooth_random(rng, n, sample_rate_hz, 0.5)) ** 1.5
+    flutter = 1.0 + 0.4 * _smooth_random(rng, n, sample_rate_hz, 8.0)
+    return _scale_to(base * gust * np.abs(flutter), level_db)
+
+
+def aircraft_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
+    """A distant aircraft: broadband 50 Hz-2 kHz (high frequencies absorbed over kilometres) with a slow
+    bell-shaped swell centred somewhere in (or near) the clip."""
+    base = _shaped_noise(rng, n, sample_rate_hz, 50.0, float(rng.uniform(800.0, 2500.0)), -2.0)
+    t = np.arange(n) / sample_rate_hz
+    duration = n / sample_rate_hz
+    centre, width = rng.uniform(-0.3, 1.3) * duration, rng.uniform(4.0, 15.0)
+    return _scale_to(base * (0.3 + np.exp(-0.5 * ((t - centre) / width) ** 2)), level_db)
+
+
 def synthesize_ambience(ambience: Ambience, n_samples: int, sample_rate_hz: float, seed: int,
                         *indices: int) -> dict[str, np.ndarray]:
     """Each enabled bed (Pa at the microphone), from its own rng stream (seed, acoustics, *indices, 1000+k)."""
@@ -671,6 +856,11 @@ def synthesize_ambience(ambience: Ambience, n_samples: int, sample_rate_hz: floa
     if ambience.birdsong_db is not None:
         beds["birdsong"] = birdsong_bed(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 3), n_samples,
                                         sample_rate_hz, ambience.birdsong_db)
+    for k, (name, maker) in enumerate((("residual", residual_bed), ("rustle", rustle_bed), ("aircraft", aircraft_bed))):
+        level = getattr(ambience, f"{name}_db")
+        if level is not None:
+            beds[name] = maker(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 4 + k), n_samples,
+                               sample_rate_hz, level)
     return beds
 
 

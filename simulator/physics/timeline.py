@@ -91,11 +91,39 @@ def rotor_hover_rpm(kind: str, size_m: float) -> float:
         return 5500.0 * (0.45 / size_m) ** 0.5
     if kind == "fixed_wing":
         return 7000.0 * (1.5 / size_m) ** 0.5
+    if kind == "helicopter":
+        return 400.0
     return 0.0
 
 
+# Flight-controller RPM corrections of each rotor (attitude hold, gusts): relative std and correlation
+# time drawn per target (domain randomisation; Heutschi et al. 2020 model drone pitch with random RPM
+# jitter; the spread is an assumption, not a fit). Zero-sum across rotors: attitude corrections trade
+# thrust between rotors and leave the total (the hover RPM of the flight state) unchanged.
+RPM_FLUCTUATION_STD = (0.005, 0.03)
+RPM_FLUCTUATION_TIME_S = (0.05, 0.5)
+
+
+def rotor_rpm_fluctuation(rng: np.random.Generator, n_frames: int, n_rotors: int, frame_rate_hz: float) -> np.ndarray:
+    """Multiplicative per-rotor RPM factors (F, R): 1 + a zero-sum Gauss-Markov (AR(1)) fluctuation with a
+    drawn relative std and correlation time (``RPM_FLUCTUATION_STD``, ``RPM_FLUCTUATION_TIME_S``)."""
+    if n_rotors < 2 or n_frames < 1:
+        return np.ones((n_frames, n_rotors))
+    std = rng.uniform(*RPM_FLUCTUATION_STD)
+    tau = rng.uniform(*RPM_FLUCTUATION_TIME_S)
+    a = float(np.exp(-1.0 / (frame_rate_hz * tau)))
+    from scipy.signal import lfilter
+
+    drive = rng.standard_normal((n_frames, n_rotors))
+    drive[0] /= np.sqrt(max(1.0 - a * a, 1e-12))                # start in the stationary distribution
+    x = lfilter([np.sqrt(1.0 - a * a)], [1.0, -a], drive, axis=0)
+    x -= x.mean(axis=1, keepdims=True)
+    x *= np.sqrt(n_rotors / (n_rotors - 1.0))                  # per-rotor std stays ``std`` after removing the mean
+    return 1.0 + std * x
+
+
 def _rotor_count(kind: str) -> int:
-    return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1}.get(kind, 0)
+    return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1, "helicopter": 1}.get(kind, 0)
 
 
 def _normalise(v: np.ndarray) -> np.ndarray:
@@ -149,6 +177,7 @@ def _part_roles(kind: str) -> tuple[str, ...]:
         "fixed_wing": ("fuselage", "wing", "tail", "motor", "prop", "body"),
         "bird": ("body", "head", "wing", "feather"),
         "airliner": ("fuselage", "wing", "tail", "engine"),
+        "helicopter": ("fuselage", "tail", "engine", "exhaust", "body", "prop"),
     }[kind]
 
 
@@ -186,10 +215,52 @@ def _part_temperatures(scenario: Scenario, target: Target, position: np.ndarray,
     return out
 
 
-def _camera_tracks(scenario: Scenario, targets: list[TargetTrack], n_frames: int) -> dict[str, CameraTrack]:
+def pan_tilt_pointing(aim_m: np.ndarray, origin_m: np.ndarray, tracking, frame_rate_hz: float,
+                      rng_error: np.random.Generator, rng_loss: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """(forward (F, 3) unit, lost (F,) bool) of a pan-tilt head tracking ``aim_m`` (see
+    scenes.schema.Tracking): command = target direction + Ornstein-Uhlenbeck error per axis;
+    during a loss the command holds the last pointing; the head follows through a first-order lag.
+    Draws are per frame in order, so a truncated sequence is a prefix of the full one."""
+    n = len(aim_m)
+    rel = aim_m - origin_m
+    az = np.unwrap(np.arctan2(rel[:, 0], rel[:, 1]))
+    el = np.arctan2(rel[:, 2], np.hypot(rel[:, 0], rel[:, 1]))
+    dt = 1.0 / frame_rate_hz
+    sigma = np.radians(tracking.error_deg)
+    rho = np.exp(-dt / tracking.error_period_s)
+    noise = rng_error.standard_normal((n, 2))
+    err = np.empty((n, 2))
+    err[0] = sigma * noise[0]
+    for i in range(1, n):
+        err[i] = rho * err[i - 1] + sigma * np.sqrt(1 - rho * rho) * noise[i]
+    lost = np.zeros(n, bool)
+    if tracking.loss_rate_hz > 0:
+        draws = rng_loss.random((n, 2))
+        starts = draws[:, 0] < tracking.loss_rate_hz * dt
+        lengths = tracking.loss_s[0] + (tracking.loss_s[1] - tracking.loss_s[0]) * draws[:, 1]
+        for i in np.flatnonzero(starts):
+            lost[i:i + max(1, int(round(lengths[i] * frame_rate_hz)))] = True
+    alpha = 1.0 - np.exp(-dt / tracking.lag_s) if tracking.lag_s > 0 else 1.0
+    head = np.empty((n, 2))
+    head[0] = (az[0] + err[0, 0] / max(np.cos(el[0]), 0.1), el[0] + err[0, 1])
+    for i in range(1, n):
+        command = head[i - 1] if lost[i] else np.array([az[i] + err[i, 0] / max(np.cos(el[i]), 0.1), el[i] + err[i, 1]])
+        head[i] = head[i - 1] + alpha * (command - head[i - 1])
+    h_az, h_el = head[:, 0], np.clip(head[:, 1], -np.radians(89.0), np.radians(89.0))
+    forward = np.stack([np.sin(h_az) * np.cos(h_el), np.cos(h_az) * np.cos(h_el), np.sin(h_el)], -1)
+    return forward, lost
+
+
+def _camera_tracks(scenario: Scenario, targets: list[TargetTrack], n_frames: int,
+                   seed: int = 0) -> dict[str, CameraTrack]:
     rig = scenario.camera_rig
     origin = np.tile(np.asarray(rig.position_m, dtype=np.float64), (n_frames, 1))
-    if rig.track_target is not None:
+    if rig.track_target is not None and rig.tracking is not None:
+        track = next(t for t in targets if t.name == rig.track_target)
+        forward, _ = pan_tilt_pointing(track.position_m, origin, rig.tracking, scenario.frame_rate_hz,
+                                       rng_for(seed, "tracking", 0), rng_for(seed, "tracking", 1))
+        aim = origin + forward
+    elif rig.track_target is not None:
         track = next(t for t in targets if t.name == rig.track_target)
         aim = track.position_m
     else:
@@ -239,21 +310,26 @@ def build_timeline(scenario: Scenario, seed: int, n_frames: int | None = None) -
         rotation, thrust_ratio = _attitude(target.kind, vel, acc)
         n_rotors = _rotor_count(target.kind)
         hover = rotor_hover_rpm(target.kind, target.size_m)
-        if target.kind == "fixed_wing":
+        if target.kind == "helicopter":   # constant-speed rotor (governed); collective pitch varies instead
+            base_rpm = np.full(count, float(target.rotor.main_rpm))
+        elif target.kind == "fixed_wing":
             base_rpm = hover * np.sqrt(np.clip(np.linalg.norm(vel, axis=-1) / 15.0, 0.3, 3.0))
         else:
             base_rpm = hover * np.sqrt(np.clip(thrust_ratio, 0.2, 4.0))
-        detune = 1.0 + 0.01 * rng_for(seed, "rotor_detune", index).standard_normal(n_rotors)
-        rpm = base_rpm[:, None] * detune[None, :]
+        rotor_rng = rng_for(seed, "rotor_detune", index)
+        detune = 1.0 + 0.01 * rotor_rng.standard_normal(n_rotors)
+        rpm = base_rpm[:, None] * detune[None, :] * rotor_rpm_fluctuation(rotor_rng, count, n_rotors,
+                                                                           scenario.frame_rate_hz)
         angle = np.concatenate([[0.0], np.cumsum(base_rpm[:-1] / 60.0 * 2 * np.pi / scenario.frame_rate_hz)])
         flap = 2 * np.pi * target.wingbeat_hz * times if target.kind == "bird" else np.zeros(count)
         track = TargetTrack(
             target_id=index + 1, name=target.name, kind=target.kind, size_m=target.size_m,
             position_m=pos, velocity_mps=vel, rotation=rotation, rotor_rpm=rpm, rotor_angle_rad=angle,
-            flap_phase_rad=flap, n_blades=2 if n_rotors else 0,
+            flap_phase_rad=flap,
+            n_blades=target.rotor.main_blades if target.kind == "helicopter" else (2 if n_rotors else 0),
         )
         track.part_temperature_k = _part_temperatures(scenario, target, pos, rig_origin, sky, times)
         tracks.append(track)
-    cameras = _camera_tracks(scenario, tracks, count)
+    cameras = _camera_tracks(scenario, tracks, count, seed)
     return Timeline(scenario=scenario, seed=seed, times_s=times, targets=tracks, cameras=cameras,
                     microphone_position_m=cameras["rgb"].origin_m.copy())

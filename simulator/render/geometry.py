@@ -52,11 +52,11 @@ def _rigid_fit(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 class AnimatedAsset:
     """Rest-pose parts of one target plus the rigid motion law of each moving part."""
 
-    def __init__(self, kind: str, size_m: float):
-        self.kind, self.size_m = kind, float(size_m)
-        rest = build_asset(kind, size_m)
-        rotor = build_asset(kind, size_m, rotor_angle_rad=_ROTOR_PROBE_RAD)
-        flap = build_asset(kind, size_m, flap_phase_rad=_FLAP_PROBE_RAD)
+    def __init__(self, kind: str, size_m: float, main_blades: int = 4):
+        self.kind, self.size_m, self.main_blades = kind, float(size_m), int(main_blades)
+        rest = build_asset(kind, size_m, main_blades=self.main_blades)
+        rotor = build_asset(kind, size_m, rotor_angle_rad=_ROTOR_PROBE_RAD, main_blades=self.main_blades)
+        flap = build_asset(kind, size_m, flap_phase_rad=_FLAP_PROBE_RAD, main_blades=self.main_blades)
         self.roles = sorted({p.role for p in rest}, key=[p.role for p in rest].index)
         self._parts = []  # (role, rest vertices, motion or None); motion = (driver, axis_per_unit, pivot)
         self.exact = True
@@ -97,7 +97,8 @@ class AnimatedAsset:
         return out
 
     def _verify(self) -> bool:
-        reference = build_asset(self.kind, self.size_m, rotor_angle_rad=_CHECK[0], flap_phase_rad=_CHECK[1])
+        reference = build_asset(self.kind, self.size_m, rotor_angle_rad=_CHECK[0], flap_phase_rad=_CHECK[1],
+                                main_blades=self.main_blades)
         posed = self._posed_parts(*_CHECK)
         return all(np.max(np.abs(a - b.vertices), initial=0.0) <= POSE_TOLERANCE * max(self.size_m, 1.0)
                    for a, b in zip(posed, reference))
@@ -108,7 +109,8 @@ class AnimatedAsset:
             parts = self._posed_parts(rotor_angle_rad, flap_phase_rad)
             roles = [role for role, _, _ in self._parts]
         else:
-            built = build_asset(self.kind, self.size_m, rotor_angle_rad=rotor_angle_rad, flap_phase_rad=flap_phase_rad)
+            built = build_asset(self.kind, self.size_m, rotor_angle_rad=rotor_angle_rad, flap_phase_rad=flap_phase_rad,
+                                main_blades=self.main_blades)
             parts, roles = [p.vertices for p in built], [p.role for p in built]
         return {role: np.vstack([v for v, r in zip(parts, roles) if r == role]) for role in self.roles}
 
@@ -118,7 +120,7 @@ class TrackGeometry:
 
     def __init__(self, track: TargetTrack):
         self.track = track
-        self.asset = AnimatedAsset(track.kind, track.size_m)
+        self.asset = AnimatedAsset(track.kind, track.size_m, track.n_blades if track.kind == "helicopter" else 4)
         self._cache: dict[int, dict[str, np.ndarray]] = {}
 
     @property

@@ -16,7 +16,8 @@ from simulator.physics import thermal
 from simulator.physics.timeline import Timeline
 
 CLASS_OF_KIND = {"quadcopter": "drone", "hexacopter": "drone", "fixed_wing": "drone", "bird": "bird",
-                 "airliner": "aircraft"}
+                 "airliner": "aircraft",
+                 "helicopter": "helicopter"}
 BACKGROUND_RING_PX = 4
 
 

@@ -44,7 +44,7 @@ from simulator.render.plan import (
     plan_camera,
     projected_boxes,
 )
-from simulator.seeding import render_seed
+from simulator.seeding import render_seed, rng_for
 
 ENV_WIDTH = 2048
 ENV_HEIGHT = 1024
@@ -156,11 +156,13 @@ class SkyMaps:
         si1.wi = mi.Vector3f(*[float(c) for c in -self.sun_direction])
         sun_value = np.array(sun_only.eval(si1)).ravel() * SUN_SOLID_ANGLE_SR
         self.sun_irradiance = sun_value if sun_el > 0 else np.zeros(3)
+        self.sun_elevation_deg = float(sun_el)
         del sky_only, sun_only, si, si1
         # texel solid angle depends on the row only: (2 pi / W)(pi / H) sin(theta_row)
         row_sa = (2 * np.pi / ENV_WIDTH) * (np.pi / ENV_HEIGHT) * np.sin((np.arange(half) + 0.5) / ENV_HEIGHT * np.pi)
         weight = (up * row_sa[:, None]).ravel()
         sky_irradiance = weight @ rgb.reshape(-1, 3).astype(np.float64)
+        self.sky_irradiance = sky_irradiance
         sun_cos = max(self.sun_direction[2], 0.0)
         ground = scenario.sky.ground_albedo * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi
         clouds = scenario.sky.clouds
@@ -231,6 +233,15 @@ class _View:
                     self.keys.append((slot, ti, role))
                     face_counts.append(len(geo.faces(role)))
                     vert_counts.append(len(geo.world(0)[role]))
+        self.terrain = owner.terrain_seen[which][0] if owner.terrain is not None else None
+        if self.terrain is not None:
+            # terrain: one copy per slot plus one in the background slot (index batch_frames), which
+            # holds no targets and serves the ROI background (self.sky)
+            for slot in range(plan.batch_frames + 1):
+                self.keys.append((slot, -1, "terrain"))
+                face_counts.append(len(self.terrain.faces))
+                vert_counts.append(len(self.terrain.vertices))
+        self.vert_counts = np.array(vert_counts)
         self.face_counts = np.array(face_counts)
         self.face_key = np.repeat(np.arange(len(self.keys)), self.face_counts)
         self._key_slot = np.array([k[0] for k in self.keys])
@@ -238,7 +249,7 @@ class _View:
         self._key_role = [k[2] for k in self.keys]
         faces, offset = [], 0
         for (_slot, ti, role), nv in zip(self.keys, vert_counts):
-            faces.append(owner.geometry[ti].faces(role) + offset)
+            faces.append((self.terrain.faces if ti < 0 else owner.geometry[ti].faces(role)) + offset)
             offset += nv
         # one zero-area face spanning a fixed box (never hit) pins the scene's bounding sphere, which
         # Mitsuba bakes into the emitter kernels as literals: without it every sequence compiled its
@@ -271,14 +282,15 @@ class _View:
         scene["sky"] = {"type": "envmap", "bitmap": mi.Bitmap(env), "to_world": owner.sky.to_world}
         props = mi.Properties()
         props["bsdf"] = mi.load_dict({"type": "diffuse",
-                                      "reflectance": {"type": "mesh_attribute", "name": "face_albedo"}})
+                                      "reflectance": {"type": "mesh_attribute", "name": f"{self.attr}_albedo"}})
         # the airlight/thermal emission is seen directly; it is not a light worth sampling (weight 0)
         props["emitter"] = mi.load_dict({"type": "area", "sampling_weight": 0.0,
-                                         "radiance": {"type": "mesh_attribute", "name": "face_emission"}})
+                                         "radiance": {"type": "mesh_attribute", "name": f"{self.attr}_emission"}})
         mesh = mi.Mesh("targets", self.n_vertices, len(self.faces), props=props)
         n_faces = len(self.faces)
-        mesh.add_attribute("face_albedo", 3, [0.5] * (3 * n_faces))
-        mesh.add_attribute("face_emission", 3, [0.0] * (3 * n_faces))
+        n_attr = self.n_vertices if self.terrain is not None else n_faces
+        mesh.add_attribute(f"{self.attr}_albedo", 3, [0.5] * (3 * n_attr))
+        mesh.add_attribute(f"{self.attr}_emission", 3, [0.0] * (3 * n_attr))
         params = mi.traverse(mesh)
         params["vertex_positions"] = mi.Float(self._vertices([0] * self.plan.batch_frames).ravel())
         params["faces"] = mi.UInt32(self.faces.ravel())
@@ -286,11 +298,20 @@ class _View:
         scene["targets"] = mesh
         return mi.load_dict(scene)
 
+    @property
+    def attr(self) -> str:
+        """Mesh attributes are per face (targets only) or per vertex (with terrain: smooth texture)."""
+        return "face" if self.terrain is None else "vertex"
+
     def _vertices(self, slot_frames: list[int]) -> np.ndarray:
         """(n_vertices, 3) float32: each slot's frame geometry relative to its camera, at the slot."""
         cam, plan, owner = self.camera, self.plan, self.owner
         blocks = []
         for slot, ti, role in self.keys:
+            if ti < 0:   # terrain; the background slot is set for frame 0's camera origin
+                frame = slot_frames[slot] if slot < len(slot_frames) else 0
+                blocks.append(self.terrain.vertices - cam.origin_m[frame] + plan.slot_offset_m(slot))
+                continue
             frame = slot_frames[slot]
             rel = owner.geometry[ti].world(frame)[role] - cam.origin_m[frame]
             blocks.append(rel + plan.slot_offset_m(slot))
@@ -309,20 +330,39 @@ class _View:
         albedo = np.zeros((len(self.keys), 3), np.float32)
         emission = np.zeros((len(self.keys), 3), np.float32)
         for k, (slot, ti, role) in enumerate(self.keys):
+            if ti < 0:
+                continue
             frame = slot_frames[slot]
             if self.which == "rgb":
                 albedo[k], emission[k] = owner.rgb_material(ti, role, frame, "rgb")
             else:
                 emission[k] = owner.thermal_radiance(ti, role, frame, "thermal")
         self.params["targets.vertex_positions"] = mi.Float(self._vertices(slot_frames).ravel())
-        pin = np.zeros((1, 3), np.float32)  # the bounding face's attributes (never hit)
-        self.params["targets.face_albedo"] = mi.Float(np.vstack([np.repeat(albedo, self.face_counts, axis=0),
-                                                                 pin]).ravel())
-        self.params["targets.face_emission"] = mi.Float(np.vstack([np.repeat(emission, self.face_counts, axis=0),
-                                                                   pin]).ravel())
+        if self.terrain is None:
+            pin = np.zeros((1, 3), np.float32)  # the bounding face's attributes (never hit)
+            self.params["targets.face_albedo"] = mi.Float(np.vstack([np.repeat(albedo, self.face_counts, axis=0),
+                                                                     pin]).ravel())
+            self.params["targets.face_emission"] = mi.Float(np.vstack([np.repeat(emission, self.face_counts, axis=0),
+                                                                       pin]).ravel())
+        else:
+            self.params["targets.vertex_albedo"] = mi.Float(self._per_vertex(albedo, None).ravel())
+            seen = owner.terrain_seen[self.which][1]
+            self.params["targets.vertex_emission"] = mi.Float(self._per_vertex(emission,
+                                                                               owner.terrain_emission(self.which)[seen]).ravel())
         self.params.update()
         self._slot_frames = list(slot_frames)
         return tiles
+
+    def _per_vertex(self, per_key: np.ndarray, terrain_values: np.ndarray | None) -> np.ndarray:
+        """(n_vertices, 3) float32: each target key's value on its vertices, the terrain's own
+        per-vertex values (zero albedo: terrain is pre-lit emission), and the two pin vertices."""
+        target_keys = self._key_target >= 0
+        blocks = [np.repeat(per_key[target_keys], self.vert_counts[target_keys], axis=0)]
+        n_terrain = int(np.sum(~target_keys))
+        tv = np.zeros((len(self.terrain.vertices), 3), np.float32) if terrain_values is None else terrain_values
+        blocks += [tv] * n_terrain
+        blocks.append(np.zeros((2, 3), np.float32))
+        return np.vstack(blocks).astype(np.float32)
 
     def _camera_arrays(self, slot_frames: list[int]) -> list:
         """Per-slot camera origin, forward, right and up as Dr.Jit arrays (for gathers)."""
@@ -409,6 +449,11 @@ class _View:
             return self.sky(frame)[region[1]:region[3], region[0]:region[2]]
         x0, y0, x1, y1 = region if region is not None else (0, 0, cam.width_px, cam.height_px)
         h, w = y1 - y0, x1 - x0
+        if self.terrain is not None:
+            image = self._terrain_background(frame, x0, y0, w, h)
+            if region is None and self.static:
+                self._sky_cache = (pose, image)
+            return image
         idx = dr.arange(mi.UInt32, h * w)
         wo = self._opaque(mi.UInt32, w)
         x = mi.Float(idx % wo + self._opaque(mi.UInt32, x0)) + 0.5
@@ -422,6 +467,27 @@ class _View:
         if region is None and self.static:
             self._sky_cache = (pose, image)
         return image
+
+    def _terrain_background(self, frame: int, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+        """(h, w, 3) background (sky and terrain, no targets): one ray per pixel centre from the
+        background slot, which holds the terrain and no targets. Smooth terrain (per-vertex
+        emission) matches the tiles' jittered samples to well below a grey level; an edge of the
+        terrain crossing a tile border can differ by its anti-aliasing (measured: 10x cheaper than
+        the tiles' spp samples per pixel, which a turning camera pays every frame)."""
+        dr, mi, cam, plan = self.dr, self.mi, self.camera, self.plan
+        n = h * w
+        idx = dr.arange(mi.UInt32, n)
+        wo = self._opaque(mi.UInt32, w)
+        x = mi.Float(idx % wo + self._opaque(mi.UInt32, x0)) + 0.5
+        y = mi.Float(idx // wo + self._opaque(mi.UInt32, y0)) + 0.5
+        fwd, up = cam.forward[frame], cam.up[frame]
+        row = np.concatenate([plan.slot_offset_m(plan.batch_frames), fwd, np.cross(fwd, up), up])
+        table = np.asarray([row, row], np.float64)
+        cams = [mi.Float(table[:, c].astype(np.float32)) for c in range(12)]
+        ray = self._rays(dr.zeros(mi.UInt32, n), x, y, cams)
+        si = self.scene.ray_intersect(ray)
+        value = si.emitter(self.scene).eval(si)
+        return np.array(value, dtype=np.float32).T.reshape(h, w, 3)
 
     def coverage(self, slot_frames: list[int], tiles: dict[tuple[int, int], Tile], wanted: set[int]) -> dict:
         """Coverage rays (regular k x k grid per pixel) over each target's projected box in each
@@ -485,6 +551,29 @@ def _layout_geometry(timeline: Timeline, layout: Timeline, cameras: tuple[str, .
     return [TrackGeometry(track) for track in other]
 
 
+def _faces_in_view(mesh, cam, margin_px: float = 4.0) -> np.ndarray:
+    """(n_faces,) bool: faces whose projection touches some frame's image (plus a margin), or that
+    cross the camera plane (kept, conservatively). A triangle with every vertex in front projects to
+    the triangle of its projected vertices, so the test is exact for those. Culled faces cannot be
+    hit by any primary or coverage ray; only indirect light from them is lost (the RGB path tracer's
+    bounce to the ground then sees the sky map's ground colour instead)."""
+    keep = np.zeros(len(mesh.faces), bool)
+    poses: set[bytes] = set()
+    for i in range(len(cam.forward)):
+        pose = cam.origin_m[i].tobytes() + cam.forward[i].tobytes() + cam.up[i].tobytes()
+        if pose in poses:
+            continue
+        poses.add(pose)
+        px, depth = cam.project(i, mesh.vertices)
+        front = depth > 1e-3
+        fx, fy, fd = px[mesh.faces, 0], px[mesh.faces, 1], front[mesh.faces]
+        all_front = fd.all(axis=1)
+        inside = ((fx.max(axis=1) >= -margin_px) & (fx.min(axis=1) <= cam.width_px + margin_px)
+                  & (fy.max(axis=1) >= -margin_px) & (fy.min(axis=1) <= cam.height_px + margin_px))
+        keep |= (all_front & inside) | (fd.any(axis=1) & ~all_front)
+    return keep
+
+
 class SequenceRenderer:
     """Renders every frame of a Timeline in batched launches; geometry and shape set stay fixed, so
     Dr.Jit compiles once per camera. ``cameras`` limits the work (e.g. RGB only for small video);
@@ -505,6 +594,13 @@ class SequenceRenderer:
         self.rig = scenario.camera_rig
         self._targets = {t.name: t for t in scenario.targets}
         self.geometry = [TrackGeometry(track) for track in timeline.targets]
+        self.terrain = None
+        self.terrain_seen: dict[str, tuple] = {}   # per camera: (the faces any frame sees, their vertex index)
+        self._terrain_emission: dict[str, np.ndarray] = {}
+        if scenario.terrain is not None:
+            from scenes.terrain import build_terrain
+
+            self.terrain = build_terrain(scenario, rng_for(timeline.seed, "terrain"))
         # the launch layout (tiles, batch, clip distance) comes from ``layout`` when given: a scene
         # with the same cameras and these targets first (a counterfactual twin renders with its drone
         # clip's layout, so every lane, and so every random number, of the shared pixels is the same)
@@ -523,6 +619,12 @@ class SequenceRenderer:
                     row.append(projected_boxes(px, depth, cam.width_px, cam.height_px))
                     max_range = max(max_range, float(np.linalg.norm(verts - cam.origin_m[i], axis=1).max()))
                 frames_boxes.append(row)
+            if self.terrain is not None:   # only the terrain some frame can see; rays must reach its farthest point
+                self.terrain_seen[which] = self.terrain.subset(_faces_in_view(self.terrain, cam))
+                seen = self.terrain_seen[which][0]
+                if len(seen.faces):
+                    max_range = max(max_range, float(np.linalg.norm(seen.vertices - cam.origin_m[0], axis=1).max())
+                                    + 10.0)
             self.boxes[which] = frames_boxes
             self.plans[which] = plan_camera(frames_boxes, cam.width_px, cam.height_px, max_range,
                                             batch_frames=batch_frames, roi=roi)
@@ -557,6 +659,43 @@ class SequenceRenderer:
         sight = track.position_m[frame] - self.timeline.cameras[which].origin_m[frame]
         tau, path_radiance = self.sky.thermal_sky.lwir.along(sight)  # LOWTRAN7 tables (physics.atmosphere)
         return float(tau * surface + path_radiance)
+
+    def terrain_emission(self, which: str) -> np.ndarray:
+        """(n_terrain_vertices, 3) float32 emitted radiance of the terrain seen by camera ``which``
+        (at frame 0's camera origin). RGB: the pre-lit surface, L = t rho (E_sun max(n.s, 0) +
+        E_sky (1 + n_z) / 2) / pi + (1 - t) A (Lambertian, isotropic sky; no cast shadows). Thermal:
+        tau (eps L(T) + (1 - eps) L_refl) + L_path with T from simulator.physics.terrain_thermal."""
+        if which in self._terrain_emission:
+            return self._terrain_emission[which]
+        from scenes.terrain import ASSET_NAMES
+        from scenes.terrain_assets import TERRAIN_ASSETS
+        from simulator.physics.terrain_thermal import surface_offset_k
+
+        mesh, scenario = self.terrain, self.timeline.scenario
+        rel = mesh.vertices - self.timeline.cameras[which].origin_m[0]
+        dist = np.maximum(np.linalg.norm(rel, axis=1), 1e-3)
+        if which == "rgb":
+            albedo = np.array([TERRAIN_ASSETS[n].rgb_albedo for n in ASSET_NAMES])[mesh.asset] * mesh.texture[:, None]
+            sun = np.asarray(self.sky.sun_irradiance, np.float64)
+            cos_sun = np.clip(mesh.normal @ self.sky.sun_direction, 0.0, None)[:, None]
+            irradiance = sun[None, :] * cos_sun + self.sky.sky_irradiance[None, :] * (1 + mesh.normal[:, 2:3]) / 2
+            t = np.exp(-self.beta_visible * dist)[:, None]
+            out = t * np.clip(albedo, 0.0, 1.0) * irradiance / np.pi + (1 - t) * self.sky.airlight_rgb[None, :]
+        else:
+            atm, terrain = scenario.atmosphere, scenario.terrain
+            cover = scenario.sky.clouds.coverage if scenario.sky.clouds is not None else 0.0
+            eps_of = {n: terrain.emissivity.get(n, TERRAIN_ASSETS[n].emissivity) for n in ASSET_NAMES}
+            offset = np.array([surface_offset_k(TERRAIN_ASSETS[n], self.sky.sun_elevation_deg, atm.air_temperature_k,
+                                                atm.relative_humidity, cover, eps_of[n]) for n in ASSET_NAMES])
+            temp_k = atm.air_temperature_k + offset[mesh.asset] + mesh.temperature_offset_k
+            eps = np.array([eps_of[n] for n in ASSET_NAMES])[mesh.asset]
+            surface = eps * thermal.band_radiance(temp_k) + (1 - eps) * self.sky.reflected_lwir
+            el = np.arcsin(np.clip(rel[:, 2] / dist, -1.0, 1.0))
+            lwir = self.sky.thermal_sky.lwir
+            value = lwir.transmission(dist, el) * surface + lwir.path_radiance(dist, el)
+            out = np.repeat(np.asarray(value, np.float64)[:, None], 3, axis=1)
+        self._terrain_emission[which] = out.astype(np.float32)
+        return self._terrain_emission[which]
 
     def record(self) -> dict:
         """The launch layout per camera (recorded in the metadata: it shapes the sample pattern)."""

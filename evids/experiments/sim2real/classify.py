@@ -79,8 +79,10 @@ def few_shot_clips(samples: Sequence[FrameSample], fraction: float, rng: np.rand
 def _net(in_channels: int, n_classes: int):
     from torch import nn
 
+    # 32 px in: a 5x5 stride-2 stem, then two 3x3 blocks at 8x8 and 4x4 (0.7 M multiply-adds per grey
+    # crop, a quarter of three 3x3 blocks at full resolution: the 2-core budget of the harness)
     return nn.Sequential(
-        nn.Conv2d(in_channels, 16, 3, padding=1), nn.BatchNorm2d(16), nn.ReLU(), nn.MaxPool2d(2),
+        nn.Conv2d(in_channels, 16, 5, stride=2, padding=2), nn.BatchNorm2d(16), nn.ReLU(), nn.MaxPool2d(2),
         nn.Conv2d(16, 32, 3, padding=1), nn.BatchNorm2d(32), nn.ReLU(), nn.MaxPool2d(2),
         nn.Conv2d(32, 64, 3, padding=1), nn.BatchNorm2d(64), nn.ReLU(), nn.AdaptiveAvgPool2d(1),
         nn.Flatten(), nn.Dropout(0.2), nn.Linear(64, n_classes))
@@ -135,24 +137,38 @@ def _interval(res) -> dict[str, float]:
     return {"estimate": res.estimate, "ci_low": res.ci_low, "ci_high": res.ci_high}
 
 
+_FORKED: dict[str, Any] = {}
+
+
+def _condition_job(name: str, seed: int) -> np.ndarray:
+    """Train condition ``name`` with ``seed`` (one torch thread) and predict the test crops."""
+    import torch
+
+    torch.set_num_threads(1)
+    f = _FORKED
+    net = train_cnn(f["sets"][name], f["n_classes"], seed=seed, **f["train"])
+    return predict(net, f["test"].x).argmax(1)
+
+
 def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int, *, seeds: Sequence[int], epochs: int,
-                        batch_size: int, learning_rate: float, bootstrap: int, rng_seed: int,
-                        progress=None) -> dict[str, Any]:
-    """Train every condition x seed, evaluate on ``test``; balanced accuracy with clip-bootstrap CIs,
-    the ratio (b)/(a), and the differences (c)-(a) and (d+)-(d) with their minimum detectable
-    differences."""
+                        batch_size: int, learning_rate: float, bootstrap: int, rng_seed: int, workers: int = 1,
+                        label: str | None = None) -> dict[str, Any]:
+    """Train every condition x seed (as forked jobs on ``workers`` processes, one torch thread each),
+    evaluate on ``test``; balanced accuracy with clip-bootstrap CIs, the ratio (b)/(a), and the
+    differences (c)-(a) and (d+)-(d) with their minimum detectable differences."""
+    from evids.experiments.pipeline import forked_map
+
+    jobs = [(name, int(seed)) for name, train in sets.items() if len(train.y) for seed in seeds]
+    _FORKED.update(sets=sets, test=test, n_classes=n_classes,
+                   train=dict(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate))
+    try:
+        done = {jobs[i]: p for i, p in forked_map(_condition_job, jobs, workers, label)}
+    finally:
+        _FORKED.clear()
     preds: dict[str, np.ndarray] = {}      # condition -> (n_seeds, n_test) predicted class
     per_seed: dict[str, list[float]] = {}
-    for name, train in sets.items():
-        if not len(train.y):
-            continue
-        rows = []
-        for seed in seeds:
-            net = train_cnn(train, n_classes, seed=seed, epochs=epochs, batch_size=batch_size,
-                            learning_rate=learning_rate)
-            rows.append(predict(net, test.x).argmax(1))
-            if progress is not None:
-                progress()
+    for name in dict.fromkeys(n for n, _ in jobs):
+        rows = [done[(name, int(seed))] for seed in seeds]
         preds[name] = np.stack(rows)
         per_seed[name] = [balanced_accuracy(test.y, r) for r in rows]
     names = list(preds)
@@ -192,7 +208,7 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
 
 
 def domain_classifier(real: CropSet, synthetic: CropSet, *, seeds: Sequence[int], epochs: int, batch_size: int,
-                      learning_rate: float, rng: np.random.Generator) -> dict[str, Any]:
+                      learning_rate: float, rng: np.random.Generator, workers: int = 1) -> dict[str, Any]:
     """Held-out balanced accuracy of a CNN telling real from synthetic (0.5 = indistinguishable).
     Split by clip: half of the real clips and half of the synthetic sequences train, the rest test."""
     def halves(s: CropSet) -> tuple[np.ndarray, np.ndarray]:
@@ -210,10 +226,15 @@ def domain_classifier(real: CropSet, synthetic: CropSet, *, seeds: Sequence[int]
                     np.concatenate([real.clip[rm], synthetic.clip[sm]]))
     test_x = np.concatenate([real.x[rt], synthetic.x[st]])
     test_y = np.concatenate([np.zeros(rt.sum(), np.int64), np.ones(st.sum(), np.int64)])
-    accs = []
-    for seed in seeds:
-        net = train_cnn(train, 2, seed=seed, epochs=epochs, batch_size=batch_size, learning_rate=learning_rate)
-        accs.append(balanced_accuracy(test_y, predict(net, test_x).argmax(1)) if len(test_y) else float("nan"))
+    from evids.experiments.pipeline import forked_map
+
+    _FORKED.update(sets={"domain": train}, test=CropSet(test_x, test_y, np.zeros(len(test_y), str)), n_classes=2,
+                   train=dict(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate))
+    try:
+        done = dict(forked_map(_condition_job, [("domain", int(s)) for s in seeds], workers))
+    finally:
+        _FORKED.clear()
+    accs = [balanced_accuracy(test_y, done[i]) if len(test_y) else float("nan") for i in range(len(seeds))]
     return {"accuracy": float(np.mean(accs)), "per_seed": accs, "n_train": int(len(train.y)),
             "n_test": int(len(test_y)),
             "test_clips_real": int(np.unique(real.clip[rt]).size),

@@ -41,6 +41,38 @@ def _synthetic_job(seq_dir: str, params: dict) -> tuple[list[FrameSample], ClipS
     return synthetic_sequence_samples(Path(seq_dir), **params)
 
 
+REAL_CACHE_VERSION = 1
+
+
+def _cached_real_samples(out: Path, bench, calls: list, workers: int, progress: bool) -> dict:
+    """The real clips' samples, from ``OUT/cache/real_samples.pkl`` when it was made from the same copy
+    of the benchmark with the same clips and sampling parameters (the real side does not change
+    between simulator versions: reruns skip decoding), else computed and cached."""
+    import hashlib
+    import pickle
+
+    key = hashlib.sha256(json.dumps({"version": REAL_CACHE_VERSION, "benchmark": bench.identity(),
+                                     "calls": [(c.media, p) for c, p in calls]}, sort_keys=True).encode()).hexdigest()
+    path = out / "cache" / "real_samples.pkl"
+    if path.is_file():
+        try:
+            with open(path, "rb") as fh:
+                cached = pickle.load(fh)  # our own cache file, written below
+            if cached.get("key") == key:
+                return cached["results"]
+        except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError):
+            pass  # unreadable or from another version: recompute
+    from evids.experiments.pipeline import forked_map
+
+    _FORKED["bench"] = bench
+    try:
+        results = dict(forked_map(_real_job, calls, workers, "real clips" if progress else None))
+    finally:
+        _FORKED.clear()
+    write_atomic(path, pickle.dumps({"key": key, "results": results}, protocol=pickle.HIGHEST_PROTOCOL))
+    return results
+
+
 def _generation_config(cfg: Sim2RealConfig, cls: str, base_dir: Path, quick: bool):
     """The class's generation config with scenario paths made absolute (and shrunk for --quick)."""
     from simulator.dataset.config import GenerationConfig
@@ -195,11 +227,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     calls = [(clip, params) for s in sensors for clip in bench.clips(s, classes=classes)]
     samples: list[FrameSample] = []
     clip_summaries: list[ClipSummary] = []
-    _FORKED["bench"] = bench
-    try:
-        results = dict(forked_map(_real_job, calls, vis.workers, "real clips" if progress else None))
-    finally:
-        _FORKED.clear()
+    results = _cached_real_samples(out, bench, calls, vis.workers, progress)
     for i in range(len(calls)):
         got, summ, err = results[i]
         if err is not None:
@@ -250,21 +278,18 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         sets = {"a_real": set_a, "b_synthetic": set_b, "c_synthetic_plus_real": classify.concat(set_b, set_a),
                 "d_few_shot": set_d, "d_plus_few_shot_synthetic": classify.concat(set_b, set_d)}
         test = classify.crop_set(real_eval, classes)
-        n_jobs = len(sets) * len(seeds)
-        bar = _bar(f"{sensor}: crop classifiers", n_jobs) if progress else None
         cond = classify.evaluate_conditions(sets, test, len(classes), seeds=seeds, epochs=epochs,
                                             batch_size=tr.batch_size, learning_rate=tr.learning_rate,
                                             bootstrap=min(tr.bootstrap, 200) if quick else tr.bootstrap,
                                             rng_seed=cfg.seed,
-                                            progress=(lambda: bar[0].advance(bar[1])) if bar else None)
-        if bar:
-            bar[0].stop()
+                                            workers=vis.workers, label=f"{sensor}: crop classifiers" if progress
+                                            else None)
         domain = {}
         for kind in ("crop", "background"):
             domain[kind] = classify.domain_classifier(classify.crop_set(real_cal, classes, kind),
                                                       classify.crop_set(synthetic, classes, kind),
                                                       seeds=seeds, epochs=epochs, batch_size=tr.batch_size,
-                                                      learning_rate=tr.learning_rate,
+                                                      learning_rate=tr.learning_rate, workers=vis.workers,
                                                       rng=rng_for(cfg.seed, "sim2real", 8,
                                                                   VISUAL_SENSORS.index(sensor)))
         if vis.detector_frames_per_clip:
@@ -318,20 +343,21 @@ def _audio_track(bench, cfg: Sim2RealConfig, out: Path, quick: bool, progress: b
                                  progress=progress)
 
 
-def _bar(label: str, total: int):
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-    task = bar.add_task("jobs", total=total)
-    bar.start()
-    return bar, task
-
-
 def format_table(summary: dict[str, Any]) -> str:
     """The plain-text table the command prints."""
     lines = []
     for sensor, res in summary["sensors"].items():
         if sensor not in VISUAL_SENSORS:
+            for model, r in res.get("classifier", {}).items():
+                lines.append(f"audio ({model}): ROC-AUC on the real evaluation half")
+                for cond, v in r.items():
+                    if isinstance(v, dict):
+                        lines.append(f"  {v.get('description', cond):<52} {v['roc_auc']:.3f} "
+                                     f"[{v['roc_auc_ci95'][0]:.3f}, {v['roc_auc_ci95'][1]:.3f}]")
+                if "ratio_synthetic_over_real_auc" in r:
+                    lines.append(f"  ratio (b)/(a) {r['ratio_synthetic_over_real_auc']:.3f}; helicopter windows called "
+                                 "drone by (b) "
+                                 f"{100 * (r['b_synthetic'].get('helicopter_called_drone') or 0):.0f} %")
             continue
         c = res["classifier"]
         lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({c['n_test_clips']} clips, "

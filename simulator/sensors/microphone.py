@@ -1,0 +1,126 @@
+"""Recording chain: sound pressure at the microphone -> the samples a consumer recorder writes.
+
+Stages (each switchable; parameters that the hardware leaves open are drawn per clip from
+``RecorderConfig`` ranges, ``rng_for(seed, "acoustics", *indices, RECORDER_STREAM_INDEX)``):
+
+1. microphone response: 2nd-order high-pass (small electret capsules and their wind-noise filters
+   roll off below ~30-100 Hz), a broad presence lift (+0-5 dB around 2-6 kHz, typical of small
+   cardioid/shotgun electrets) and a 2nd-order low-pass (12-20 kHz, at most 0.45 fs);
+2. self-noise of capsule and preamplifier (a white floor, dB re full scale after the gain);
+3. automatic gain control: the level (RMS in 50 ms blocks) is followed with a fast attack and a slow
+   release and the gain steers it to a target level, between a minimum and maximum gain, as consumer
+   recorders and laptop inputs do (the gain 'pumps' with loud events);
+4. clipping at full scale and quantisation to the recording's bit depth (16 bit by default).
+
+The Svanström recordings were made with a small cardioid electret (thesis: Boya BY-MM1) into a
+laptop; its response, gain and AGC are not published, hence the ranges.
+"""
+from __future__ import annotations
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from simulator.seeding import rng_for
+
+RECORDER_STREAM_INDEX = 3000
+AGC_BLOCK_S = 0.05
+Span = tuple[float, float]
+
+
+class RecorderConfig(BaseModel):
+    """The recording chain; spans (low, high) are drawn uniformly per clip."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    enabled: bool = True
+    highpass_hz: Span = (30.0, 100.0)
+    lowpass_hz: Span = (12_000.0, 20_000.0)
+    presence_db: Span = (0.0, 5.0)
+    presence_hz: Span = (2000.0, 6000.0)
+    self_noise_dbfs: Span = (-80.0, -66.0)
+    agc: bool = True
+    agc_target_dbfs: Span = (-32.0, -22.0)
+    agc_release_s: Span = (0.5, 3.0)
+    agc_attack_s: float = Field(default=0.05, gt=0.0)
+    agc_max_gain_db: float = Field(default=3.0, ge=0.0)
+    agc_min_gain_db: float = Field(default=-20.0, le=0.0)
+    input_gain_db: Span = Field(default=(-8.0, 4.0), description="gain before the AGC (or the fixed gain without it)")
+    bit_depth: int = Field(default=16, ge=8, le=32)
+    clip: bool = True
+
+    @model_validator(mode="after")
+    def _spans(self) -> RecorderConfig:
+        for name, value in self.model_dump().items():
+            if isinstance(value, tuple) and value[0] > value[1]:
+                raise ValueError(f"{name}: low {value[0]} exceeds high {value[1]}")
+        if self.highpass_hz[0] <= 0 or self.lowpass_hz[0] <= self.highpass_hz[1]:
+            raise ValueError("highpass_hz must be > 0 and below lowpass_hz")
+        return self
+
+
+def microphone_response_db(freqs_hz: np.ndarray, highpass_hz: float, lowpass_hz: float, presence_db: float,
+                           presence_hz: float) -> np.ndarray:
+    """Magnitude response (dB) of the capsule model: 2nd-order Butterworth high- and low-pass and a
+    1-octave-wide (Gaussian in log f) presence lift."""
+    f = np.maximum(np.asarray(freqs_hz, dtype=np.float64), 1e-3)
+    hp = (f / highpass_hz) ** 4 / (1 + (f / highpass_hz) ** 4)
+    lp = 1 / (1 + (f / lowpass_hz) ** 4)
+    lift = presence_db * np.exp(-0.5 * (np.log2(f / presence_hz)) ** 2)
+    return 10 * np.log10(np.maximum(hp * lp, 1e-30)) + lift
+
+
+def _apply_response(x: np.ndarray, sample_rate_hz: float, response_db_fn) -> np.ndarray:
+    import scipy.fft as sfft
+
+    n_fft = sfft.next_fast_len(x.size, real=True)
+    f = np.fft.rfftfreq(n_fft, 1.0 / sample_rate_hz)
+    return sfft.irfft(sfft.rfft(x, n_fft) * 10 ** (response_db_fn(f) / 20), n_fft)[: x.size]
+
+
+def agc_gain(x: np.ndarray, sample_rate_hz: float, target_dbfs: float, attack_s: float, release_s: float,
+             min_gain_db: float, max_gain_db: float) -> np.ndarray:
+    """Per-sample AGC gain: block RMS (50 ms) followed by a one-pole attack/release detector (level
+    rising: attack time constant, falling: release), gain = target / level within the gain limits."""
+    block = max(1, round(AGC_BLOCK_S * sample_rate_hz))
+    n_blocks = int(np.ceil(x.size / block))
+    padded = np.pad(x, (0, n_blocks * block - x.size))
+    level = np.sqrt(np.mean(padded.reshape(n_blocks, block) ** 2, axis=1) + 1e-20)
+    a_att, a_rel = np.exp(-AGC_BLOCK_S / attack_s), np.exp(-AGC_BLOCK_S / release_s)
+    env = np.empty(n_blocks)
+    e = level[0]
+    for i, v in enumerate(level):                      # a few hundred blocks: a plain loop is fine
+        a = a_att if v > e else a_rel
+        e = a * e + (1 - a) * v
+        env[i] = e
+    gain_db = np.clip(target_dbfs - 20 * np.log10(env), min_gain_db, max_gain_db)
+    centres = (np.arange(n_blocks) + 0.5) * block
+    return 10 ** (np.interp(np.arange(x.size), centres, gain_db) / 20)
+
+
+def record(pressure_pa: np.ndarray, sample_rate_hz: float, *, seed: int, index: int = 0, full_scale_pa: float = 0.1,
+           config: RecorderConfig | None = None) -> np.ndarray:
+    """Recorded samples (float32, full scale 1.0) of a pressure signal (Pa) through the chain above.
+
+    ``full_scale_pa`` is the pressure that reaches full scale at 0 dB input gain. Disabled config:
+    pressure / full_scale_pa. Deterministic per (seed, index).
+    """
+    cfg = config or RecorderConfig()
+    x = np.asarray(pressure_pa, dtype=np.float64).reshape(-1) / float(full_scale_pa)
+    if not full_scale_pa > 0:
+        raise ValueError(f"full_scale_pa must be > 0, got {full_scale_pa}")
+    if not cfg.enabled or x.size == 0:
+        return x.astype(np.float32)
+    rng = rng_for(seed, "acoustics", int(index), RECORDER_STREAM_INDEX)
+    u = lambda span: float(rng.uniform(*span))  # noqa: E731
+    hp, lp = u(cfg.highpass_hz), min(u(cfg.lowpass_hz), 0.45 * sample_rate_hz)
+    pres_db, pres_hz = u(cfg.presence_db), u(cfg.presence_hz)
+    noise_dbfs, target, release = u(cfg.self_noise_dbfs), u(cfg.agc_target_dbfs), u(cfg.agc_release_s)
+    input_gain = 10 ** (u(cfg.input_gain_db) / 20)
+    y = _apply_response(x, sample_rate_hz, lambda f: microphone_response_db(f, hp, lp, pres_db, pres_hz)) * input_gain
+    if cfg.agc:
+        y = y * agc_gain(y, sample_rate_hz, target, cfg.agc_attack_s, release, cfg.agc_min_gain_db, cfg.agc_max_gain_db)
+    y = y + 10 ** (noise_dbfs / 20) * rng.standard_normal(y.size)
+    if cfg.clip:
+        y = np.clip(y, -1.0, 1.0)
+    steps = 2 ** (cfg.bit_depth - 1) - 1
+    return (np.round(y * steps) / steps).astype(np.float32)

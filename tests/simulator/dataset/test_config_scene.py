@@ -1,0 +1,89 @@
+"""Scene-realism fields of generation configs: distance bins, fixed field of view, fixed / tracking
+camera modes, cloud cover, terrain; null fields leave older configs' scenarios unchanged."""
+import math
+
+import numpy as np
+import pytest
+
+from scenes.errors import UserInputError
+from simulator.dataset.config import _draw_bin, load_generation_config, randomised_scenario
+
+BASE = {"name": "t", "mixture": [{"scenario": "clear_day_quad"}], "frames": 5, "image_size": [96, 80], "spp": 1}
+OLD = {"range_m": [100, 120], "trajectory_kinds": ["hover"], "air_temperature_k": [280, 281], "distractors": [1, 1]}
+
+
+def _cfg(**randomise):
+    return load_generation_config({**BASE, "randomise": {**OLD, **randomise}})
+
+
+def _range(scene):
+    return math.dist(scene.targets[0].trajectory.center_m, scene.camera_rig.position_m)
+
+
+def test_new_fields_leave_every_other_draw_alone():
+    plain, clouded = _cfg(), _cfg(cloud_cover=[0.2, 0.6])
+    for i in range(4):
+        a, b = randomised_scenario(plain, 3, i)[1], randomised_scenario(clouded, 3, i)[1]
+        assert a.sky.clouds is None and 0.2 <= b.sky.clouds.coverage <= 0.6
+        assert a.model_copy(update={"sky": b.sky}) == b
+        assert a.terrain is None and a.camera_rig.tracking is None
+
+
+def test_distance_bins_follow_their_weights_and_ranges():
+    cfg = _cfg(distance_bins=[{"weight": 3, "range_m": [20, 40]}, {"weight": 1, "range_m": [150, 200]}])
+    ranges = np.array([_range(randomised_scenario(cfg, 0, i)[1]) for i in range(60)])
+    near, far = (ranges > 19) & (ranges < 41), (ranges > 149) & (ranges < 201)
+    assert np.all(near | far) and near.any() and far.any()
+    draws = np.array([_draw_bin(cfg.randomise.distance_bins, np.random.default_rng(7)) for _ in range(1)]
+                     + [_draw_bin(cfg.randomise.distance_bins, rng) for rng in [np.random.default_rng(8)]
+                        for _ in range(4000)])
+    assert (draws < 100).mean() == pytest.approx(0.75, abs=0.02)   # binomial sd 0.007
+
+
+def test_fixed_camera_fraction_and_tracking_ranges():
+    cfg = _cfg(fixed_camera_fraction=0.5, camera_elevation_deg=[1, 2], hfov_deg=[20, 20],
+               tracking_lag_s=[0.2, 0.4], tracking_error_deg=[0.1, 0.3], tracking_loss_rate_hz=[0.0, 0.2])
+    fixed = tracked = 0
+    for i in range(40):
+        rig = randomised_scenario(cfg, 1, i)[1].camera_rig
+        assert rig.rgb.hfov_deg == 20.0
+        if rig.look_at_m is not None:
+            fixed += 1
+            d = np.subtract(rig.look_at_m, rig.position_m)
+            assert 1.0 - 1e-3 <= math.degrees(math.asin(d[2] / np.linalg.norm(d))) <= 2.0 + 1e-3
+            assert rig.tracking is None
+        else:
+            tracked += 1
+            assert 0.2 <= rig.tracking.lag_s <= 0.4 and 0.1 <= rig.tracking.error_deg <= 0.3
+    assert fixed > 8 and tracked > 8
+
+
+def test_terrain_goes_into_every_sequence_and_bad_values_name_the_field():
+    cfg = _cfg(terrain={"ground": "field", "procedural": {"tree_lines": [1, 2]}}, distractor_kinds=["helicopter"])
+    scene = randomised_scenario(cfg, 0, 0)[1]
+    assert scene.terrain.ground == "field" and scene.terrain.procedural.tree_lines == (1, 2)
+    assert scene.targets[1].kind == "helicopter" and scene.targets[1].rotor.main_blades == 4
+    with pytest.raises(UserInputError, match=r"randomise\.terrain\.ground"):
+        _cfg(terrain={"ground": "moss"})
+    with pytest.raises(UserInputError, match=r"randomise\.terrain\.emissivity\.asphalt"):
+        _cfg(terrain={"emissivity": {"asphalt": -1}})
+    with pytest.raises(UserInputError, match="cloud_cover"):
+        _cfg(cloud_cover=[0.5, 1.5])
+
+
+def test_elevation_as_a_fraction_of_the_vertical_field_of_view():
+    cfg = _cfg(elevation_fov_fraction=[0.3, 0.3], trajectory_kinds=["hover"], range_m=[200, 200])
+    for i in range(5):
+        scene = randomised_scenario(cfg, 2, i)[1]
+        th = scene.camera_rig.thermal
+        vfov = 2 * math.degrees(math.atan(math.tan(math.radians(th.hfov_deg) / 2) * th.height_px / th.width_px))
+        c = np.subtract(scene.targets[0].trajectory.center_m, scene.camera_rig.position_m)
+        expected_z = max(200.0 * math.sin(math.radians(0.3 * vfov)), 3.0 - scene.camera_rig.position_m[2])
+        assert c[2] == pytest.approx(expected_z, abs=2e-3)
+
+
+def test_tracking_error_scales_with_the_field_of_view():
+    cfg = _cfg(tracking_error_fov_fraction=[0.1, 0.1], tracking_lag_s=[0.2, 0.2])
+    for i in range(3):
+        rig = randomised_scenario(cfg, 4, i)[1].camera_rig
+        assert rig.tracking.error_deg == pytest.approx(0.1 * rig.rgb.hfov_deg, abs=1e-3) and rig.tracking.lag_s == 0.2

@@ -1,0 +1,68 @@
+"""Recording chain: capsule response, AGC, self-noise, clipping, quantisation; determinism."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from simulator.sensors import microphone as mic
+
+FS = 44_100
+
+
+def test_disabled_chain_is_pressure_over_full_scale():
+    x = 0.01 * np.sin(np.arange(1000) / 5.0)
+    y = mic.record(x, FS, seed=1, full_scale_pa=0.1, config=mic.RecorderConfig(enabled=False))
+    assert y.dtype == np.float32 and np.allclose(y, x / 0.1, atol=1e-7)
+
+
+def test_response_corners_by_hand():
+    f = np.array([100.0, 1000.0, 8000.0, 80_000.0])
+    r = mic.microphone_response_db(f, highpass_hz=100.0, lowpass_hz=8000.0, presence_db=0.0, presence_hz=3000.0)
+    # 2nd-order Butterworth magnitude: |H|^2 = (f/fc)^4 / (1 + (f/fc)^4) -> -3.01 dB at the corner
+    assert r[0] == pytest.approx(-3.01, abs=0.01) and r[2] == pytest.approx(-3.01, abs=0.01)
+    assert r[1] == pytest.approx(-10 * np.log10(1 + 0.1 ** 4) - 10 * np.log10(1 + (1000 / 8000) ** 4), abs=1e-9)
+    assert r[3] == pytest.approx(-40.0, abs=0.01)              # a decade above: 10 lg(1 + 10^4)
+    lift = mic.microphone_response_db(np.array([3000.0]), 10.0, 20000.0, 4.0, 3000.0)
+    assert lift[0] == pytest.approx(4.0, abs=0.01)
+
+
+def test_deterministic_per_seed_and_index():
+    x = 0.02 * np.random.default_rng(0).standard_normal(FS)
+    a = mic.record(x, FS, seed=3, index=1)
+    assert a.tobytes() == mic.record(x, FS, seed=3, index=1).tobytes()
+    assert a.tobytes() != mic.record(x, FS, seed=4, index=1).tobytes()
+    assert a.tobytes() != mic.record(x, FS, seed=3, index=2).tobytes()
+
+
+def _flat(**kw) -> mic.RecorderConfig:
+    base = {"highpass_hz": (20.0, 20.0), "lowpass_hz": (20000.0, 20000.0), "presence_db": (0.0, 0.0),
+                "self_noise_dbfs": (-140.0, -140.0), "input_gain_db": (0.0, 0.0), "bit_depth": 32}
+    return mic.RecorderConfig(**{**base, **kw})
+
+
+def test_agc_steers_to_target_within_its_gain_limits():
+    t = np.arange(4 * FS) / FS
+    tone = np.sin(2 * np.pi * 1000 * t) * np.sqrt(2)           # rms 1 before scaling
+    cfg = _flat(agc_target_dbfs=(-20.0, -20.0), agc_release_s=(0.5, 0.5), agc_max_gain_db=10.0)
+    loud = mic.record(tone * 10 ** (-24 / 20), FS, seed=0, full_scale_pa=1.0, config=cfg)
+    level = 20 * np.log10(np.sqrt(np.mean(loud[2 * FS:].astype(np.float64) ** 2)))
+    assert level == pytest.approx(-20.0, abs=0.3)              # -24 dBFS raised 4 dB (< max gain) to the target
+    hot = mic.record(tone * 10 ** (-8 / 20), FS, seed=0, full_scale_pa=1.0, config=cfg)
+    level_h = 20 * np.log10(np.sqrt(np.mean(hot[2 * FS:].astype(np.float64) ** 2)))
+    assert level_h == pytest.approx(-20.0, abs=0.3)            # -8 dBFS lowered 12 dB
+    quiet = mic.record(tone * 10 ** (-50 / 20), FS, seed=0, full_scale_pa=1.0, config=cfg)
+    level_q = 20 * np.log10(np.sqrt(np.mean(quiet[2 * FS:].astype(np.float64) ** 2)))
+    assert level_q == pytest.approx(-50.0 + cfg.agc_max_gain_db, abs=0.3)
+
+
+def test_clipping_and_16_bit_quantisation():
+    x = 5.0 * np.sin(np.arange(FS) / 3.0)
+    y = mic.record(x, FS, seed=0, full_scale_pa=1.0, config=_flat(agc=False, bit_depth=16))
+    assert np.max(np.abs(y)) <= 1.0 and np.max(np.abs(y)) == pytest.approx(1.0)
+    steps = y.astype(np.float64) * 32767
+    assert np.allclose(steps, np.round(steps), atol=1e-3)
+
+
+def test_bad_span_names_the_field():
+    with pytest.raises(ValueError, match="agc_target_dbfs"):
+        mic.RecorderConfig(agc_target_dbfs=(-10.0, -30.0))
