@@ -95,11 +95,14 @@ case "$job" in
     install_python
     shift
     set +e
+    bash .ci/lint      # ruff + mypy (ruff.toml, mypy.ini): seconds; a finding fails the job after the suite
+    lint=$?
     # --durations=25: the slowest tests in every run's output (docs/TESTING.md says why they are slow)
     .venv/bin/python -m pytest -q -p no:cacheprovider -n 2 --durations=25 "$@"
     status=$?
     set -e
     if [ "$status" = 5 ]; then echo "error: pytest collected no tests"; exit 1; fi
+    if [ "$lint" != 0 ] && [ "$status" = 0 ]; then echo "error: .ci/lint found problems (above)"; exit "$lint"; fi
     exit "$status"
     ;;
   *)

@@ -64,9 +64,11 @@ def main() -> None:
     fft_s = (time.perf_counter() - t0) / 3
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     print(f"setup (PSF kernels, image motion, fixed pattern): {setup_s:.3f} s")
-    print(f"thermal optics {kernel.shape[0]}x{kernel.shape[0]} kernel: KernelFilter (scipy FFT) {1000 * fft_s:.1f} ms vs direct "
+    print(f"thermal optics {kernel.shape[0]}x{kernel.shape[0]} kernel: KernelFilter (scipy FFT) {1000 * fft_s:.1f} ms "
+          "vs direct "
           f"{1000 * direct_s:.1f} ms ({direct_s / fft_s:.1f}x)")
-    print(f"camera model CPU time: {1000 * cpu_per_frame_s:.1f} ms per paired frame (single-threaded; ~ the idle wall time)")
+    print(f"camera model CPU time: {1000 * cpu_per_frame_s:.1f} ms per paired frame (single-threaded; ~ the idle wall "
+          "time)")
     print(f"camera model: {1000 * per_frame_s:.1f} ms per paired frame ({1 / per_frame_s:.1f} paired frames/s alone)")
 
 

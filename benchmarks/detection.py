@@ -62,7 +62,8 @@ def main() -> None:
             big = torch.nn.functional.interpolate(x[:8], scale_factor=2.0)
             t_ref = _best(lambda: [m(big[i:i + 1]) for i in range(8)], args.repeats) / 8
             fps[name] = args.frames / t1
-            print(f"{name:8s} 320x256 batch 1: {args.frames / t1:7.1f} frames/s   batch {args.batch}: {args.frames / tb:7.1f} frames/s   "
+            print(f"{name:8s} 320x256 batch 1: {args.frames / t1:7.1f} frames/s   batch {args.batch}: "
+                  f"{args.frames / tb:7.1f} frames/s   "
                   f"640x512 batch 1: {1 / t_ref:6.1f} frames/s (320x256 is {t_ref / (t1 / args.frames):.1f}x faster)")
 
         a = StreamMaps.of(rgb_m(rgb[:1]))
@@ -74,9 +75,11 @@ def main() -> None:
               f"({t_ds / t_det * 100:.1f} % of one detector forward)")
 
         rng = np.random.default_rng(0)
-        dets = [FrameDetections(np.c_[rng.uniform(0, 300, (20, 2)), np.full((20, 2), 8.0)], rng.random(20), rng.random(20) * 0.2)
+        dets = [FrameDetections(np.c_[rng.uniform(0, 300, (20, 2)), np.full((20, 2), 8.0)], rng.random(20),
+                                rng.random(20) * 0.2)
                 for _ in range(200)]
-        dets = [FrameDetections(np.r_[[[100 + t * 0.5, 100, 8, 8]], d.boxes[1:]], np.r_[0.99, d.scores[1:]], d.uncertainty)
+        dets = [FrameDetections(np.r_[[[100 + t * 0.5, 100, 8, 8]], d.boxes[1:]], np.r_[0.99, d.scores[1:]],
+                                d.uncertainty)
                 for t, d in enumerate(dets)]
 
         def track():
@@ -105,7 +108,8 @@ def main() -> None:
                 fused = g.update(u)
                 ref = ra if ra is not None else tb_
                 vac = StreamMaps(ref.prob, ref.box, torch.ones_like(ref.alpha), None)
-                fuse_maps(ra if ra is not None and fused[0] else vac, tb_ if tb_ is not None and fused[1] else vac, "ds")
+                fuse_maps(ra if ra is not None and fused[0] else vac, tb_ if tb_ is not None and fused[1] else vac,
+                          "ds")
             return g.stats
 
         t_full = _best(full, args.repeats)

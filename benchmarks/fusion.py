@@ -38,7 +38,9 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=1_000_000, help="samples for the vectorised run")
     parser.add_argument("--subset", type=int, default=20_000, help="samples for the per-sample reference")
     parser.add_argument("--repeats", type=int, default=7)
-    parser.add_argument("--threads", type=int, default=1, help="torch intra-op threads (0: torch default); 1 by default because on a shared 2-core machine intra-op threads are descheduled and timings swing 5-10x")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="torch intra-op threads (0: torch default); 1 by default because on a shared 2-core "
+                             "machine intra-op threads are descheduled and timings swing 5-10x")
     args = parser.parse_args()
     if args.threads > 0:
         torch.set_num_threads(args.threads)
@@ -69,7 +71,8 @@ def main() -> None:
     per_vec = t_vec / args.n
     per_ref = t_ref / args.subset
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}, dtype {alphas.dtype}")
-    print(f"ds vectorised: {args.n} samples x {m} modalities x K={k}: {t_vec:.4f} s (best of {args.repeats}, median {t_med:.4f} s); "
+    print(f"ds vectorised: {args.n} samples x {m} modalities x K={k}: {t_vec:.4f} s (best of {args.repeats}, median "
+          f"{t_med:.4f} s); "
           f"fallback on {int(res.fallback.sum())} samples")
     print(f"ds per-sample python: {args.subset} samples: {t_ref:.4f} s ({per_ref * 1e6:.2f} us/sample)")
     print(f"max relative difference (float64 subset): {max_rel:.2e}")

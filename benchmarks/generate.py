@@ -105,7 +105,8 @@ def main() -> None:
         label = {"inproc1": "1 worker, in-process (all Dr.Jit threads)", "pool1": "1 worker process (1 thread)",
                  "pool2": "2 worker processes (1 thread each)"}[key]
         print(f"{label:44s} {r['seconds']:7.1f} s  {r['per_hour']:8.0f} sequences/h  peak RSS per worker "
-              f"{r['peak_worker_mb']:6.0f} MB  cores used {r['cores_used']:.2f}  (load avg after: {r['load_avg_1min']:.2f})")
+              f"{r['peak_worker_mb']:6.0f} MB  cores used {r['cores_used']:.2f}  (load avg after: "
+              f"{r['load_avg_1min']:.2f})")
     ratio = runs["pool2"]["per_hour"] / runs["pool1"]["per_hour"]
     cpu_per_seq = {k: r["cores_used"] * r["seconds"] / r["sequences"] for k, r in runs.items()}
     print(f"render CPU seconds per sequence: 1 worker {cpu_per_seq['pool1']:.2f}, 2 workers {cpu_per_seq['pool2']:.2f} "

@@ -48,7 +48,8 @@ def _per_launch_reference(scenario, n_frames: int) -> float:
                                "film": {"type": "hdrfilm", "width": cam.width_px, "height": cam.height_px,
                                         "rfilter": {"type": "box"}, "pixel_format": "rgb"},
                                "sampler": {"type": "independent", "sample_count": view.spp},
-                               "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 0], target=cam.forward[0].tolist(),
+                               "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 0],
+                                                                          target=cam.forward[0].tolist(),
                                                                          up=cam.up[0].tolist())})
         scenes[which] = (view.scene, sensor, mi.traverse(sensor))
     def one(frame: int) -> None:
@@ -131,7 +132,8 @@ def main() -> None:
     video = render_rgb_video(video_scene, 0, args.video_frames, 112, 112)
     video_fps = len(video) / (time.perf_counter() - v0)
 
-    print(f"scene {args.scene}, {args.frames} frames after a {warm}-frame warm-up batch, variant {renderer.mi.variant()}, "
+    print(f"scene {args.scene}, {args.frames} frames after a {warm}-frame warm-up batch, variant "
+          f"{renderer.mi.variant()}, "
           f"rgb spp {scenario.camera_rig.rgb.spp}, thermal spp {scenario.camera_rig.thermal.spp}")
     print(f"layout: {renderer.record()}")
     print(f"setup (sky maps + scene build): {setup_s:.3f} s")
@@ -141,7 +143,8 @@ def main() -> None:
           f"speedup {fps / reference_fps:.1f}x")
     print(f"video 112px: {len(video)} frames incl. sky maps and scene build per clip")
     print("render_sequence end to end (native layout, PNGs on writer threads, labels, hashes; "
-          f"{timeline.n_frames} frames incl. setup): " + ", ".join(f"{k} {v:.2f} s" for k, v in e2e_times.seconds.items()))
+          f"{timeline.n_frames} frames incl. setup): " + ", ".join(f"{k} {v:.2f} s"
+                                                                   for k, v in e2e_times.seconds.items()))
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     print(f"paired frames/s: {fps:.2f}")
     print(f"evids render end to end paired frames/s: {e2e_fps:.2f}")

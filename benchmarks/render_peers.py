@@ -4,8 +4,8 @@ Scene: preset `clear_day_quad` (a small quadcopter against the sky, sun), 640x51
 per pixel (the preset's 4), no denoising, no adaptive sampling, box-like pixel filter as close as
 Cycles allows (its default filter, 1.5 px Blackman-Harris, is kept: it costs nothing extra).
 What each side renders per frame:
-- Blender 5 (Cycles, CPU, all cores): RGB (the same baked sky as an equirectangular world texture, a sun lamp of the same
-  irradiance, the drone's meshes of that frame with the same diffuse albedos, 3 bounces) and
+- Blender 5 (Cycles, CPU, all cores): RGB (the same baked sky as an equirectangular world texture, a sun lamp of
+  the same irradiance, the drone's meshes of that frame with the same diffuse albedos, 3 bounces) and
   thermal as an emission pass (the LWIR sky map as the world, each part an emitter of its
   at-sensor band radiance, no bounces). Mesh vertices and camera are updated per frame with
   persistent data on (no scene rebuild); only `bpy.ops.render.render()` is timed, nothing is
@@ -248,7 +248,7 @@ def main() -> None:
     blender_paired = float(np.mean(rgb) + np.mean(th))
     print(f"scene {SCENE}: 640x512, {meta['spp']} spp, {args.frames} timed frames after one warm-up frame")
     print(f"blender {result['blender']} cycles CPU, RGB pass: " + " ".join(f"{t:.3f}" for t in rgb) + " s/frame")
-    print(f"blender cycles CPU, thermal emission pass: " + " ".join(f"{t:.3f}" for t in th) + " s/frame")
+    print("blender cycles CPU, thermal emission pass: " + " ".join(f"{t:.3f}" for t in th) + " s/frame")
     print(f"blender paired frame (RGB + thermal): {blender_paired:.3f} s")
     print(f"ours paired frame (RGB + thermal + coverage masks + labels, {ours_n} frames batched): {ours_s:.4f} s")
     print(f"load average after: {os.getloadavg()[0]:.2f}")

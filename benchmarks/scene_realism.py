@@ -57,7 +57,8 @@ def summarise(values: list[float]) -> dict:
     if a.size == 0:
         return {"n": 0}
     q = np.percentile(a, [25, 50, 75])
-    return {"n": int(a.size), "q25": round(float(q[0]), 3), "median": round(float(q[1]), 3), "q75": round(float(q[2]), 3)}
+    return {"n": int(a.size), "q25": round(float(q[0]), 3), "median": round(float(q[1]), 3),
+            "q75": round(float(q[2]), 3)}
 
 
 def real_stats(root: str, sensor: str, frames_per_clip: int, sheet: Path | None) -> dict:
@@ -178,7 +179,8 @@ def main() -> None:
     ap.add_argument("--synthetic", type=Path, help="a native dataset (evids generate) to measure the same way")
     args = ap.parse_args()
     if args.synthetic is not None:
-        out = {s: synthetic_stats(args.synthetic, s, args.out / f"contact_synthetic_{s}.png") for s in ("ir", "visible")}
+        out = {s: synthetic_stats(args.synthetic, s, args.out / f"contact_synthetic_{s}.png")
+               for s in ("ir", "visible")}
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "scene_stats_synthetic.json").write_text(json.dumps(out, indent=1))
         print(json.dumps(out, indent=1))

@@ -67,8 +67,10 @@ def main() -> None:
     grey_stream = H264Stream(W, H, 30.0, rec, colour=False)
     with tempfile.TemporaryDirectory() as tmp:
         rows = [
-            ("plateau AGC (thermal)", _per_frame_ms(plateau, counts), "histogram AGC", _per_frame_ms(equalise_counts, counts)),
-            ("plateau + local contrast", _per_frame_ms(local, counts), "histogram AGC", _per_frame_ms(equalise_counts, counts)),
+            ("plateau AGC (thermal)", _per_frame_ms(plateau, counts), "histogram AGC",
+             _per_frame_ms(equalise_counts, counts)),
+            ("plateau + local contrast", _per_frame_ms(local, counts), "histogram AGC",
+             _per_frame_ms(equalise_counts, counts)),
             ("camcorder AE + tone (RGB)", _per_frame_ms(camcorder, levels), "sRGB LUT",
              _per_frame_ms(lambda x: srgb_lut.take(x.ravel()).reshape(x.shape), levels)),
             ("H.264 encode+decode RGB", _per_frame_ms(rgb_stream, rgb8), "PNG write RGB",

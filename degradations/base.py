@@ -171,7 +171,8 @@ class Degradation:
         unknown = sorted(set(params) - allowed)
         if unknown:
             raise DegradationError(
-                f"{self.name}: unknown parameter(s) {', '.join(_short(u) for u in unknown[:10])}; allowed: {sorted(allowed)}")
+                f"{self.name}: unknown parameter(s) {', '.join(_short(u) for u in unknown[:10])}; allowed: "
+                f"{sorted(allowed)}")
         temporal = temporal or self.default_temporal
         if temporal not in TEMPORAL_MODES:
             raise DegradationError(f"{self.name}: temporal must be one of {TEMPORAL_MODES}, got {temporal!r}")

@@ -34,7 +34,8 @@ class _Cross(Degradation):
                "rf_spec": "frame_rate_hz"}[self.modality]
         r = meta.get(key)
         if r is None or not float(r) > 0:
-            raise DegradationError(f"{self.name}: meta[{key!r}] must be a positive rate for stream {self.modality!r}, got {r!r}")
+            raise DegradationError(f"{self.name}: meta[{key!r}] must be a positive rate for stream {self.modality!r}, "
+                                   f"got {r!r}")
         return float(r)
 
     def time_axis(self) -> int:
@@ -238,6 +239,7 @@ def blend_signature(x: np.ndarray, donor: np.ndarray, strength: float, stream: s
     if stream in ("audio", "rf_iq"):
         return ((1.0 - s) * x + s * donor).astype(x.dtype)
     if stream == "rf_spec":
-        p = (1.0 - s) * np.power(10.0, x.astype(np.float64) / 10.0) + s * np.power(10.0, donor.astype(np.float64) / 10.0)
+        p = ((1.0 - s) * np.power(10.0, x.astype(np.float64) / 10.0) + s
+             * np.power(10.0, donor.astype(np.float64) / 10.0))
         return (10.0 * np.log10(np.maximum(p, 1e-30))).astype(x.dtype)
     raise DegradationError(f"signature swap: stream must be rgb, audio, rf_iq or rf_spec, got {stream!r}")

@@ -102,7 +102,8 @@ class FreqOffset(_IQ):
 
     def _apply(self, x, params, meta):
         n = np.arange(x.size, dtype=np.float64)
-        ph = 2 * np.pi * params["sign"] * (params["offset_norm"] * n + 0.5 * params["drift_norm"] / max(x.size, 1) * n**2)
+        ph = 2 * np.pi * params["sign"] * (params["offset_norm"] * n + 0.5 * params["drift_norm"] / max(x.size, 1)
+                                           * n**2)
         return (x * np.exp(1j * ph)).astype(np.complex64)
 
 
@@ -190,7 +191,8 @@ class LinkSilence(_IQ):
 
     def _apply(self, x, params, meta):
         p = signal_power(x, meta)
-        n = complex_noise(self.noise_rng(params), x.size) * np.float32(np.sqrt(p / 10 ** (params["noise_floor_db"] / 10)))
+        n = complex_noise(self.noise_rng(params), x.size) * np.float32(np.sqrt(p
+                                                                               / 10 ** (params["noise_floor_db"] / 10)))
         return (x * np.float32(10 ** (-params["attenuation_db"] / 20)) + n).astype(np.complex64)
 
 
@@ -219,7 +221,8 @@ class SpecPinkNoise(_Spec):
         F, T = x.shape
         prof = (1.0 / np.arange(1, F + 1, dtype=np.float32))[:, None]
         n = self.noise_rng(params).standard_exponential((F, T), dtype=np.float32) * prof
-        n *= np.float32(float(P.mean(dtype=np.float64)) / 10 ** (params["snr_db"] / 10) / float(n.mean(dtype=np.float64)))
+        n *= np.float32(float(P.mean(dtype=np.float64)) / 10 ** (params["snr_db"] / 10)
+                        / float(n.mean(dtype=np.float64)))
         return (np.float32(10.0) * np.log10(P + n)).astype(np.float32)
 
 
@@ -247,7 +250,8 @@ class _SpecMask(_Spec):
 
 @register
 class SpecTimeMask(_SpecMask):
-    """SpecAugment time masking: ``n_masks`` bands covering ``mask_fraction`` of columns, filled with the image minimum."""
+    """SpecAugment time masking: ``n_masks`` bands covering ``mask_fraction`` of columns, filled with the image
+    minimum."""
     name = "rf.spec_time_mask"
     axis = 1
 
@@ -272,17 +276,17 @@ class SpecInterference(_Spec):
         F, T = x.shape
         rng = self.noise_rng(params)
         P = np.power(np.float32(10.0), x / np.float32(10.0), dtype=np.float32)
-        I = np.zeros((F, T), np.float32)
+        interf = np.zeros((F, T), np.float32)
         rows = rng.integers(0, F, int(params["n_carriers"]))
-        I[rows] += 1.0
+        interf[rows] += 1.0
         cols = rng.random(T) < params["burst_fraction"]
-        I[:, cols] += 0.3
-        I *= rng.standard_exponential((F, T), dtype=np.float32)
-        m = float(I.mean(dtype=np.float64))
+        interf[:, cols] += 0.3
+        interf *= rng.standard_exponential((F, T), dtype=np.float32)
+        m = float(interf.mean(dtype=np.float64))
         if m == 0:
             return x.copy()
-        I *= np.float32(float(P.mean(dtype=np.float64)) / 10 ** (params["sir_db"] / 10) / m)
-        return (np.float32(10.0) * np.log10(P + I)).astype(np.float32)
+        interf *= np.float32(float(P.mean(dtype=np.float64)) / 10 ** (params["sir_db"] / 10) / m)
+        return (np.float32(10.0) * np.log10(P + interf)).astype(np.float32)
 
 
 @register
@@ -297,5 +301,6 @@ class SpecLinkSilence(_Spec):
     def _apply(self, x, params, meta):
         P = np.power(np.float32(10.0), x / np.float32(10.0), dtype=np.float32)
         floor = np.float32(np.percentile(P, 10))
-        Q = floor + np.maximum(P - floor, 0) * np.float32(10 ** (-params["attenuation_db"] / 10)) + np.minimum(P - floor, 0)
+        Q = (floor + np.maximum(P - floor, 0) * np.float32(10 ** (-params["attenuation_db"] / 10))
+             + np.minimum(P - floor, 0))
         return (np.float32(10.0) * np.log10(np.maximum(Q, 1e-30))).astype(np.float32)

@@ -135,7 +135,8 @@ def parse_spec(data: Any) -> DegradationSpec:
         errors = exc.errors(include_url=False)
         for err in errors[:20]:
             loc = tuple(p for p in err["loc"] if p not in ("constant", "step", "ramp", "random"))
-            lines.append(f"{_loc(loc)}: {err['msg'].removeprefix('Value error, ')} (got {short_repr(err.get('input'))})")
+            lines.append(f"{_loc(loc)}: {err['msg'].removeprefix('Value error, ')} (got "
+                         f"{short_repr(err.get('input'))})")
         if len(errors) > 20:
             lines.append(f"... and {len(errors) - 20} more problem(s)")
         raise SpecError("invalid degradation spec: " + "; ".join(lines)) from None
@@ -191,14 +192,16 @@ def stream_times(stream: str, n: int, view: dict, t_s: np.ndarray) -> np.ndarray
     if stream in ("audio", "rf_iq"):
         sr = view.get("sample_rate_hz")
         if sr is None or not float(sr) > 0:
-            raise SpecError(f"meta: {stream} needs a positive '{stream}_sample_rate_hz' or 'sample_rate_hz', got {sr!r}")
+            raise SpecError(f"meta: {stream} needs a positive '{stream}_sample_rate_hz' or 'sample_rate_hz', got "
+                            f"{sr!r}")
         return t0 + np.arange(n) / float(sr)
     if n == t_s.size:
         return t_s.astype(np.float64)
     rate = view.get("fps") if stream in ("rgb", "thermal") else view.get("frame_rate_hz")
     if rate is None or not float(rate) > 0:
         key = "fps" if stream in ("rgb", "thermal") else "frame_rate_hz"
-        raise SpecError(f"meta: {stream} has {n} frames but t_s has {t_s.size}; give '{stream}_{key}' or '{stream}_t_s'")
+        raise SpecError(f"meta: {stream} has {n} frames but t_s has {t_s.size}; give '{stream}_{key}' or "
+                        f"'{stream}_t_s'")
     return t0 + np.arange(n) / float(rate)
 
 

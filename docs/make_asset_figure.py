@@ -54,7 +54,8 @@ def draw(ax: plt.Axes, parts: list[MeshPart], view: str, title: str) -> None:
         cols.append(np.clip(base[None] * shade[:, None], 0, 1))
     polys_a, depth_a, cols_a = np.concatenate(polys), np.concatenate(depth), np.concatenate(cols)
     order = np.argsort(-depth_a)
-    ax.add_collection(PolyCollection(polys_a[order], facecolors=cols_a[order], edgecolors=cols_a[order], linewidths=0.2))
+    ax.add_collection(PolyCollection(polys_a[order], facecolors=cols_a[order], edgecolors=cols_a[order],
+                                     linewidths=0.2))
     pts = polys_a.reshape(-1, 2)
     lo, hi = pts.min(0), pts.max(0)
     c, r = 0.5 * (lo + hi), 0.55 * (hi - lo).max()
@@ -79,9 +80,11 @@ def main() -> Path:
     for j, phase in enumerate((-0.5 * math.pi, 0.0, 0.25 * math.pi, 0.5 * math.pi)):
         draw(axes[-2, j], build_asset("bird", 0.9, flap_phase_rad=phase), "front", f"bird flap phase {phase:.2f} rad")
     for j, ang in enumerate((0.0, 0.4, 0.8, 1.2)):
-        draw(axes[-1, j], build_asset("quadcopter", 0.45, rotor_angle_rad=ang), "top", f"quadcopter rotor angle {ang:.1f} rad")
+        draw(axes[-1, j], build_asset("quadcopter", 0.45, rotor_angle_rad=ang), "top",
+             f"quadcopter rotor angle {ang:.1f} rad")
     used = sorted({p.role for k in KINDS for p in build_asset(k, 1.0)}, key=ROLES.index)
-    fig.legend(handles=[Patch(color=ROLE_COLOURS[r], label=r) for r in used], loc="upper center", ncol=len(used), fontsize=8)
+    fig.legend(handles=[Patch(color=ROLE_COLOURS[r], label=r) for r in used], loc="upper center", ncol=len(used),
+               fontsize=8)
     fig.tight_layout(rect=(0, 0, 1, 0.985))
     fig.savefig(out, dpi=90)
     plt.close(fig)

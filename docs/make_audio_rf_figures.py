@@ -42,7 +42,8 @@ def _audio_spectrogram(cfg) -> None:
     audio = ac.synthesize_audio(timeline, 1, ambience=ac.Ambience(wind_db=42.0, birdsong_db=40.0), duration_s=10.0)
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.2), sharey=True)
     for ax, (title, x) in zip(axes, [("drone only (quadcopter flyby, 30 m/s, closest 40 m at t = 5 s)",
-                                      audio.targets_pa["drone"]), ("mix: drone + wind 42 dB + birdsong 40 dB", audio.mix_pa)]):
+                                      audio.targets_pa["drone"]),
+                                      ("mix: drone + wind 42 dB + birdsong 40 dB", audio.mix_pa)]):
         f, t, s = spectrogram(x, fs=FS, nperseg=4096, noverlap=3072)
         im = ax.pcolormesh(t, f, ac.pa_to_db_spl(np.sqrt(s)), vmin=-20, vmax=50, shading="auto", cmap="magma")
         ax.set_ylim(0, 3000)
@@ -82,7 +83,8 @@ def _audio_level_vs_range() -> None:
             fontsize=7, color="0.4")
     ax.set_xlabel("horizontal distance (m), drone 30 m up, microphone 1.5 m")
     ax.set_ylabel("drone level dB(A)")
-    ax.set_title(f"0.45 m quad at hover: L_WA {ac.sound_power_dba('quadcopter', 0.45):.1f} dB, 15 C / 70 % RH", fontsize=9)
+    ax.set_title(f"0.45 m quad at hover: L_WA {ac.sound_power_dba('quadcopter', 0.45):.1f} dB, 15 C / 70 % RH",
+                 fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -108,7 +110,8 @@ def _rf_spectrograms(cfg) -> None:
     panels = [(f"drone, segment {s}: {name}", drone, s) for name, s in pick.items()]
     panels.append(("same clip, radios off (Wi-Fi + Bluetooth only)", silent, 0))
     for ax, (title, cap, s) in zip(axes, panels):
-        ax.imshow(spectrogram_image(cap.spectrogram_dbm[s], rf), cmap="gray", vmin=0, vmax=255, aspect="auto", extent=extent)
+        ax.imshow(spectrogram_image(cap.spectrogram_dbm[s], rf), cmap="gray", vmin=0, vmax=255, aspect="auto",
+                  extent=extent)
         ax.set_title(title, fontsize=9)
         ax.set_xlabel("time in capture (ms)")
     axes[0].set_ylabel("offset from 2.44 GHz (MHz)")
@@ -123,12 +126,15 @@ def _rf_propagation() -> None:
     d = np.geomspace(50, 20e3, 400)
     ax = axes[0]
     ax.semilogx(d, prop.free_space_path_loss_db(d, 2.44e9), "k-", label="Friis (free space)")
-    ax.semilogx(d, prop.two_ray_path_loss_db(d, 30.0, 1.5, 2.44e9, -1.0), "b-", label="two-ray, Gamma = -1 (30 m / 1.5 m)")
+    ax.semilogx(d, prop.two_ray_path_loss_db(d, 30.0, 1.5, 2.44e9, -1.0), "b-",
+                label="two-ray, Gamma = -1 (30 m / 1.5 m)")
     ax.semilogx(d, prop.two_ray_path_loss_db(d, 30.0, 1.5, 2.44e9, "vertical"), "g--",
                 label="two-ray, average ground, vertical pol.")
-    ax.semilogx(d, prop.two_ray_path_loss_db(d, 10.0, 1.5, 2.44e9, -1.0), "r:", label="two-ray, Gamma = -1 (10 m / 1.5 m)")
+    ax.semilogx(d, prop.two_ray_path_loss_db(d, 10.0, 1.5, 2.44e9, -1.0), "r:",
+                label="two-ray, Gamma = -1 (10 m / 1.5 m)")
     ax.plot([10e3], [126.9], "ko", ms=4)
-    ax.annotate("126.9 dB vs 120.2 dB at 10 km", (10e3, 126.9), (1.2e3, 132), fontsize=8, arrowprops={"arrowstyle": "->"})
+    ax.annotate("126.9 dB vs 120.2 dB at 10 km", (10e3, 126.9), (1.2e3, 132), fontsize=8,
+                arrowprops={"arrowstyle": "->"})
     ax.set_xlabel("horizontal distance (m)")
     ax.set_ylabel("path loss at 2.44 GHz (dB)")
     ax.set_ylim(70, 150)
@@ -146,9 +152,9 @@ def _rf_propagation() -> None:
             vis = (sched.centre_hz >= lo) & (sched.centre_hz <= hi)
             counts += [int(np.sum(vis[i])) for i in rf_links.bursts_in_windows(sched, starts, cfg.capture_s)]
         hist = np.bincount(counts, minlength=4)[:4] / len(counts)
+        expected = rf_links.expected_fhss_counts(preset, cfg.capture_s, cfg.fhss_visible_fraction(preset))["mean"]
         ax.bar(np.arange(4) + {"C0": -0.27, "C1": 0.0, "C2": 0.27}[color], hist, width=0.25, color=color,
-               label=f"{name}: mean {np.mean(counts):.2f} (analytic "
-                     f"{rf_links.expected_fhss_counts(preset, cfg.capture_s, cfg.fhss_visible_fraction(preset))['mean']:.2f})")
+               label=f"{name}: mean {np.mean(counts):.2f} (analytic {expected:.2f})")
     ax.set_xticks(range(4), ["0", "1", "2", "3"])
     ax.set_xlabel("control bursts in one 2.52 ms capture (+-9 MHz window)")
     ax.set_ylabel("fraction of captures")
@@ -165,7 +171,8 @@ def main() -> None:
     _audio_level_vs_range()
     _rf_spectrograms(cfg)
     _rf_propagation()
-    print(f"wrote {', '.join(p.name for p in sorted(OUT.glob('*.png')) if p.stem.startswith(('audio', 'rf')))} in {OUT}")
+    print(f"wrote {', '.join(p.name for p in sorted(OUT.glob('*.png')) if p.stem.startswith(('audio', 'rf')))} in "
+          f"{OUT}")
 
 
 if __name__ == "__main__":

@@ -36,7 +36,8 @@ def main(scenes: list[str]) -> None:
             sheets = [sheet_for(scene, SCENES.get(scene, 1.0), sensor, Path(tmp)) for sensor in ("ideal", "camera")]
         height = max(s.shape[0] for s in sheets)
         bars = []
-        for label, s in zip(("sensor: ideal (rendered radiance, no camera)", "sensor: camera (default camera model)"), sheets):
+        for label, s in zip(("sensor: ideal (rendered radiance, no camera)", "sensor: camera (default camera model)"),
+                            sheets):
             bar = np.full((26, s.shape[1], 3), 60, np.uint8)
             cv2.putText(bar, label, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 0), 1, cv2.LINE_AA)
             pad = np.zeros((height - s.shape[0], s.shape[1], 3), np.uint8)

@@ -27,8 +27,10 @@ def visual_rows(before: dict, after: dict) -> list[str]:
         b, a = before["sensors"].get(sensor), after["sensors"].get(sensor)
         if not (b and a):
             continue
-        out += [f"\n**{sensor.upper() if sensor == 'ir' else 'Visible'}** (classes before: {', '.join(b['classes'])}; "
-                f"after: {', '.join(a['classes'])}; chance {1 / len(b['classes']):.2f} / {1 / len(a['classes']):.2f})\n",
+        name = sensor.upper() if sensor == "ir" else "Visible"
+        out += [f"\n**{name}** (classes before: {', '.join(b['classes'])}; "
+                f"after: {', '.join(a['classes'])}; "
+                f"chance {1 / len(b['classes']):.2f} / {1 / len(a['classes']):.2f})\n",
                 "| balanced accuracy on the real evaluation half [95 % CI] | before | after |", "|---|---|---|"]
         for cond, v in a["classifier"]["conditions"].items():
             out.append(f"| {v['label']} | {_ci(b['classifier']['conditions'].get(cond))} | {_ci(v)} |")
@@ -36,13 +38,15 @@ def visual_rows(before: dict, after: dict) -> list[str]:
                            ("gain_dplus_minus_d", "(d+) - (d)")):
             out.append(f"| {label} | {_ci(b['classifier'].get(key), key != 'ratio_b_over_a')} | "
                        f"{_ci(a['classifier'].get(key), key != 'ratio_b_over_a')} |")
-        for name in ("real", "synthetic"):
+        for name in ("real", "synthetic"):  # noqa: B007 (the loop variable names the row)
             bd = b.get("detector", {}).get("conditions", {}).get(name, {})
             ad = a.get("detector", {}).get("conditions", {}).get(name, {})
-            out.append(f"| detector AP50, trained on {name} | {bd.get('ap50', float('nan')):.3f} | {ad.get('ap50', float('nan')):.3f} |")
+            nan = float("nan")
+            out.append(f"| detector AP50, trained on {name} | {bd.get('ap50', nan):.3f} | {ad.get('ap50', nan):.3f} |")
         for kind in ("crop", "background"):
             out.append(f"| domain classifier, {kind}s (0.5 = indistinguishable) | "
-                       f"{b['domain_classifier'][kind]['accuracy']:.3f} | {a['domain_classifier'][kind]['accuracy']:.3f} |")
+                       f"{b['domain_classifier'][kind]['accuracy']:.3f} | "
+                       f"{a['domain_classifier'][kind]['accuracy']:.3f} |")
         ins = []
         for res in (b, a):
             rows = [row for stats in res["statistics"].values() for row in stats.values() if row["inside"] is not None]
@@ -62,7 +66,8 @@ def statistics_rows(after: dict, sensor: str) -> list[str]:
             r, s = row["real_evaluation"], row["synthetic"]
             if not (r and s):
                 continue
-            out.append(f"| {cls} | {st} | {r['median']:.2f} [{r['q25']:.2f}, {r['q75']:.2f}] | {s['median']:.2f} | "
+            real = f"{r['median']:.2f} [{r['q25']:.2f}, {r['q75']:.2f}]"
+            out.append(f"| {cls} | {st} | {real} | {s['median']:.2f} | "
                        f"{'yes' if row['inside'] else 'no'} |")
     return out
 
@@ -77,7 +82,8 @@ def audio_rows(after: dict) -> list[str]:
     for cond, v in cl["cnn"].items():
         if isinstance(v, dict):
             w = cl["logreg"][cond]
-            out.append(f"| {v['description']} | {v['roc_auc']:.3f} [{v['roc_auc_ci95'][0]:.3f}, {v['roc_auc_ci95'][1]:.3f}] | "
+            out.append(f"| {v['description']} | "
+                       f"{v['roc_auc']:.3f} [{v['roc_auc_ci95'][0]:.3f}, {v['roc_auc_ci95'][1]:.3f}] | "
                        f"{w['roc_auc']:.3f} [{w['roc_auc_ci95'][0]:.3f}, {w['roc_auc_ci95'][1]:.3f}] |")
     for key, ci, label in (("ratio_synthetic_over_real_auc", "ratio_ci95", "ratio (b)/(a)"),
                            ("synthetic_plus_real_gain_auc", "synthetic_plus_real_gain_ci95", "(c) - (a)"),
@@ -87,7 +93,8 @@ def audio_rows(after: dict) -> list[str]:
     out.append("| helicopter windows called drone by (b) | " + " | ".join(
         f"{100 * cl[m]['b_synthetic']['helicopter_called_drone']:.0f} %" for m in ("cnn", "logreg")) + " |")
     ins = res.get("statistics_inside_real_iqr", {})
-    out.append("\nSpectral statistics inside the real IQR: " + ", ".join(f"{k} {v['inside']} of {v['of']}" for k, v in ins.items()))
+    out.append("\nSpectral statistics inside the real IQR: "
+               + ", ".join(f"{k} {v['inside']} of {v['of']}" for k, v in ins.items()))
     return out
 
 

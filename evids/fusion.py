@@ -96,7 +96,8 @@ def stack_modalities(alphas: Alphas, available: Mask = None) -> tuple[Tensor, Te
         return stacked, None
     mask = torch.stack(list(available)) if isinstance(available, (list, tuple)) else available
     if not isinstance(mask, Tensor):
-        raise ValueError(f"available must be a bool tensor (M, N) or a list of (N,) tensors, got {type(available).__name__}")
+        raise ValueError("available must be a bool tensor (M, N) or a list of (N,) tensors, got "
+                         f"{type(available).__name__}")
     if mask.dtype != torch.bool:
         if mask.is_floating_point() or not bool(((mask == 0) | (mask == 1)).all()):
             raise ValueError(f"available must be boolean (or 0/1 integers), got dtype {mask.dtype}")
@@ -155,9 +156,10 @@ def _result_cm(b: Tensor, u: Tensor, construction: Construction) -> tuple[Tensor
     else:
         mass = b.sum(dim=0)
         safe = mass > tiny
-        p = torch.where(safe, b / torch.where(safe, mass, torch.ones((), dtype=b.dtype)), torch.full((), 1.0 / k, dtype=b.dtype))
+        p = torch.where(safe, b / torch.where(safe, mass, torch.ones((), dtype=b.dtype)),
+                        torch.full((), 1.0 / k, dtype=b.dtype))
         alpha = p * s
-    return tuple(t.movedim(0, -1).contiguous() for t in (alpha, p, b))  # type: ignore[return-value]
+    return tuple(t.movedim(0, -1).contiguous() for t in (alpha, p, b))
 
 
 def _ds_step(b1: Tensor, u1: Tensor, b2: Tensor, u2: Tensor) -> tuple[Tensor, Tensor, Tensor]:
@@ -199,7 +201,7 @@ def _fold(
     modality leaves the running opinion unchanged bit for bit, and a sample's first available
     modality is taken as is."""
     fb, fu = b[0], u[0]
-    seen = mask[0] if mask is not None else None
+    seen: Tensor = mask[0] if mask is not None else None  # read only when a mask is given
     conflicts = []
     for m in range(1, b.shape[0]):
         nb, nu, c = step(fb, fu, b[m], u[m])
@@ -247,7 +249,8 @@ def dempster_shafer(
             flat_alpha = stacked.reshape(stacked.shape[0], -1, k)[:, rows]
             flat_u = u.reshape(u.shape[0], -1)[:, rows]
             if mask is not None:
-                flat_u_rank = torch.where(mask.reshape(mask.shape[0], -1)[:, rows], flat_u, torch.full((), float("inf"), dtype=u.dtype))
+                flat_u_rank = torch.where(mask.reshape(mask.shape[0], -1)[:, rows], flat_u,
+                                          torch.full((), float("inf"), dtype=u.dtype))
             else:
                 flat_u_rank = flat_u
             best_alpha, rank = flat_alpha[0], flat_u_rank[0]

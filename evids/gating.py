@@ -62,12 +62,14 @@ class GateParams:
             if not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
                 raise ValueError(f"{name} must be a number in [0, 1], got {v!r}")
         if not self.tau_low < self.tau_high:
-            raise ValueError(f"tau_low must be < tau_high for hysteresis, got tau_low={self.tau_low!r}, tau_high={self.tau_high!r}")
+            raise ValueError(f"tau_low must be < tau_high for hysteresis, got tau_low={self.tau_low!r}, "
+                             f"tau_high={self.tau_high!r}")
         if not isinstance(self.n, (int, np.integer)) or isinstance(self.n, bool) or self.n < 1:
             raise ValueError(f"n must be an int >= 1, got {self.n!r}")
         if self.mode not in ("window", "streak"):
             raise ValueError(f"mode must be 'window' or 'streak', got {self.mode!r}")
-        if self.tau_fused is not None and (not isinstance(self.tau_fused, (int, float)) or not 0.0 <= self.tau_fused <= 1.0):
+        if self.tau_fused is not None and (not isinstance(self.tau_fused, (int, float))
+                                           or not 0.0 <= self.tau_fused <= 1.0):
             raise ValueError(f"tau_fused must be None or a number in [0, 1], got {self.tau_fused!r}")
         if not isinstance(self.abstain_patience, int) or self.abstain_patience < 1:
             raise ValueError(f"abstain_patience must be an int >= 1, got {self.abstain_patience!r}")
@@ -280,7 +282,7 @@ def subset_fusion_table(
     """
     if rule not in FUSION_RULES:
         raise ValueError(f"rule must be one of {sorted(FUSION_RULES)}, got {rule!r}")
-    stacked = torch.stack(list(alphas)) if isinstance(alphas, (list, tuple)) else alphas
+    stacked: torch.Tensor = torch.stack(list(alphas)) if isinstance(alphas, (list, tuple)) else alphas
     check_alpha(stacked, "alphas", min_classes=2)
     if stacked.dim() != 3:
         raise ValueError(f"alphas must have shape (M, N, K), got {tuple(stacked.shape)}")
@@ -361,7 +363,7 @@ def sweep_gates(
     and ``skip_rate_per_modality`` (not evaluated), ``exclusion_rate`` (not fused),
     ``abstain_rate``, ``accuracy_answered`` (on non-abstained steps; NaN if none) and ``forced``.
     """
-    stacked = torch.stack(list(alphas)) if isinstance(alphas, (list, tuple)) else alphas
+    stacked: torch.Tensor = torch.stack(list(alphas)) if isinstance(alphas, (list, tuple)) else alphas
     check_alpha(stacked, "alphas", min_classes=2)
     if stacked.dim() != 3:
         raise ValueError(f"alphas must have shape (M, N, K), got {tuple(stacked.shape)}")
@@ -382,7 +384,8 @@ def sweep_gates(
         if not tl < th:
             continue
         params = GateParams(float(th), float(tl), int(nn_), mode, tau_fused, abstain_patience)
-        _, fused, abstain, stats = simulate_gate(u_mod, params, sequence_ids, u_table if tau_fused is not None else None)
+        _, fused, abstain, stats = simulate_gate(u_mod, params, sequence_ids, u_table if tau_fused is not None
+                                                 else None)
         subset = (fused.astype(np.int64) * (1 << np.arange(m))[:, None]).sum(0)
         correct = pred_table[subset, cols] == y
         acc = float(correct.mean()) if num else float("nan")

@@ -143,7 +143,8 @@ def ce_loss(logits: Tensor, target: Tensor, reduction: Reduction = "mean") -> Te
     if not isinstance(logits, Tensor) or not logits.is_floating_point() or logits.dim() != 2:
         raise ValueError("logits must be a floating tensor of shape (N, K)")
     if target.dim() != 1 or target.shape[0] != logits.shape[0] or target.is_floating_point():
-        raise ValueError(f"target must be integer class indices of shape ({logits.shape[0]},), got {tuple(target.shape)}")
+        raise ValueError(f"target must be integer class indices of shape ({logits.shape[0]},), got "
+                         f"{tuple(target.shape)}")
     if reduction not in ("mean", "sum", "none"):
         raise ValueError(f"reduction must be 'mean', 'sum' or 'none', got {reduction!r}")
     if target.numel() and (int(target.min()) < 0 or int(target.max()) >= logits.shape[1]):

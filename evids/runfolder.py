@@ -1,6 +1,7 @@
-"""Run-folder I/O shared by the experiment runner (which writes) and the report (which reads):
-JSON and CSV written atomically, and the per-stage record in ``run.json`` (with the environment:
-git commit, lock hash, numeric dependency versions; see simulator.files.environment_record)."""
+"""Run-folder I/O shared by the experiment runners (which write) and the report (which reads): the
+one checked way a command creates its run folder, JSON and CSV written atomically, and the
+per-stage record in ``run.json`` (with the environment: git commit, lock hash, numeric dependency
+versions; see simulator.files.environment_record)."""
 from __future__ import annotations
 
 import csv
@@ -8,11 +9,23 @@ import io
 import json
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 
-from simulator.files import environment_record, write_atomic
+from simulator.files import check_output, environment_record, write_atomic, write_marker
+
+
+def create_run_folder(out: Path, *, inputs: Iterable[Path] = (), kind: str = "run") -> Path:
+    """Create (or resume) a command's run folder the one checked way: the safe-output rule
+    (``simulator.files.check_output``: new, empty or an earlier evids run; never the current
+    folder, home, a root or anything overlapping ``inputs``; UserInputError otherwise), then the
+    folder and its evids marker. Every command that writes a run folder starts here."""
+    out = Path(out)
+    check_output(out, inputs=inputs, allow_resume=True)
+    out.mkdir(parents=True, exist_ok=True)
+    write_marker(out, kind)
+    return out
 
 
 def _jsonable(x: Any) -> Any:

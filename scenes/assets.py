@@ -213,7 +213,8 @@ def loft_mesh(
 def _ring(section2d: np.ndarray, origin: np.ndarray, u: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Place 2-D section points (n, 2) in the plane origin + s0 * u + s1 * w."""
     s = np.asarray(section2d, dtype=np.float64)
-    return np.asarray(origin, float)[None] + s[:, :1] * np.asarray(u, float)[None] + s[:, 1:] * np.asarray(w, float)[None]
+    return (np.asarray(origin, float)[None] + s[:, :1] * np.asarray(u, float)[None] + s[:, 1:]
+            * np.asarray(w, float)[None])
 
 
 def _circle(n: int, ra: float, rb: float | None = None, phase: float = 0.0) -> np.ndarray:
@@ -267,7 +268,8 @@ def ellipsoid_mesh(center: Sequence[float], radii: Sequence[float], n_around: in
     c = np.asarray(center, dtype=np.float64)
     th = np.pi * np.arange(1, n_rings) / n_rings
     ey, ez = np.array([0, 1.0, 0]), np.array([0, 0, 1.0])
-    rings = [_ring(_circle(n_around, ry * math.sin(t), rz * math.sin(t)), c + [rx * math.cos(t), 0, 0], ey, ez) for t in th]
+    rings = [_ring(_circle(n_around, ry * math.sin(t), rz * math.sin(t)), c + [rx * math.cos(t), 0, 0], ey, ez)
+             for t in th]
     return loft_mesh(rings, start_apex=c + [rx, 0, 0], end_apex=c - [rx, 0, 0])
 
 
@@ -392,7 +394,8 @@ HELI_TAIL_GEAR = 5.5         # tail rotor turns this many times per main rotor t
 
 def rotor_count(kind: str) -> int:
     """Number of rotors/propellers: 4 quadcopter, 6 hexacopter, 1 fixed_wing (nose puller), 0 bird/airliner."""
-    return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1, "bird": 0, "airliner": 0, "helicopter": 1}[_check_kind(kind)]
+    return {"quadcopter": 4, "hexacopter": 6, "fixed_wing": 1, "bird": 0, "airliner": 0,
+            "helicopter": 1}[_check_kind(kind)]
 
 
 def blade_count(kind: str) -> int:
@@ -401,7 +404,8 @@ def blade_count(kind: str) -> int:
 
 
 def rotor_spin_signs(kind: str) -> np.ndarray:
-    """(n_rotors,) +1 = counter-clockwise seen from the thrust side, -1 = clockwise; blade angle = base + sign * rotor_angle."""
+    """(n_rotors,) +1 = counter-clockwise seen from the thrust side, -1 = clockwise;
+    blade angle = base + sign * rotor_angle."""
     n = rotor_count(kind)
     return np.array([1.0 if i % 2 == 0 else -1.0 for i in range(n)])
 
@@ -468,8 +472,10 @@ def _multirotor(lay: _Multirotor, rotor_angle: float, hexa: bool) -> list[tuple[
         parts.append(("camera", "camera", gimbal))
         # landing skids (two thin legs + rails), part of the body shell set
         for side in (1.0, -1.0):
-            leg_f = _xf(box_mesh((0.0, 0.0, -0.07), (0.012, 0.012, 0.09)), _rot("x", side * 0.35), (0.05, side * 0.05, 0.0))
-            leg_b = _xf(box_mesh((0.0, 0.0, -0.07), (0.012, 0.012, 0.09)), _rot("x", side * 0.35), (-0.05, side * 0.05, 0.0))
+            leg_f = _xf(box_mesh((0.0, 0.0, -0.07), (0.012, 0.012, 0.09)), _rot("x", side * 0.35),
+                        (0.05, side * 0.05, 0.0))
+            leg_b = _xf(box_mesh((0.0, 0.0, -0.07), (0.012, 0.012, 0.09)), _rot("x", side * 0.35),
+                        (-0.05, side * 0.05, 0.0))
             rail = box_mesh((0.0, side * 0.0745, -0.1135), (0.17, 0.012, 0.012))
             parts.append((f"skid_{'left' if side > 0 else 'right'}", "body", _merge(leg_f, leg_b, rail)))
     return parts
@@ -478,7 +484,8 @@ def _multirotor(lay: _Multirotor, rotor_angle: float, hexa: bool) -> list[tuple[
 def _fixed_wing(rotor_angle: float) -> list[tuple[str, str, Mesh]]:
     ey, ez = np.array([0, 1.0, 0]), np.array([0, 0, 1.0])
     # fuselage stations (x, half-width, half-height, centre z)
-    st = [(0.262, 0.012, 0.013, 0.0), (0.252, 0.026, 0.029, 0.0), (0.232, 0.036, 0.040, 0.0), (0.19, 0.041, 0.047, 0.002),
+    st = [(0.262, 0.012, 0.013, 0.0), (0.252, 0.026, 0.029, 0.0), (0.232, 0.036, 0.040, 0.0),
+          (0.19, 0.041, 0.047, 0.002),
           (0.05, 0.042, 0.048, 0.004), (-0.06, 0.036, 0.040, 0.004), (-0.16, 0.017, 0.019, 0.006),
           (-0.33, 0.011, 0.012, 0.008), (-0.40, 0.008, 0.009, 0.008)]
     fus = loft_mesh([_ring(_superellipse(16, hw, hh, 2.4), (x, 0, zc), ey, ez) for x, hw, hh, zc in st])
@@ -508,7 +515,8 @@ def _bird(flap: float) -> list[tuple[str, str, Mesh]]:
         ("body", "body", ellipsoid_mesh((0.0, 0.0, 0.0), (0.14, 0.055, 0.058), 16, 10)),
         ("head", "head", ellipsoid_mesh((0.155, 0.0, 0.03), (0.045, 0.038, 0.04), 12, 7)),
     ]
-    beak = loft_mesh([_ring(_circle(8, 0.011, 0.008), (0.19, 0, 0.025), ey, ez)], end_apex=np.array([0.235, 0.0, 0.018]))
+    beak = loft_mesh([_ring(_circle(8, 0.011, 0.008), (0.19, 0, 0.025), ey, ez)],
+                     end_apex=np.array([0.235, 0.0, 0.018]))
     parts.append(("beak", "head", beak))
     # tail fan: flat hexagonal section widening rearward
     tail_st = [(-0.09, 0.035, 0.012), (-0.17, 0.055, 0.007), (-0.25, 0.075, 0.004)]
@@ -537,8 +545,10 @@ def _airliner() -> list[tuple[str, str, Mesh]]:
     nose = [(0.45, 0.14, -0.02), (0.445, 0.38, -0.016), (0.435, 0.56, -0.012), (0.42, 0.72, -0.008),
             (0.40, 0.85, -0.005), (0.375, 0.94, -0.002), (0.345, 0.99, 0.0), (0.32, 1.0, 0.0)]
     mid = [(0.15, 1.0, 0.0), (-0.05, 1.0, 0.0), (-0.25, 1.0, 0.0)]
-    tail = [(-0.33, 0.93, 0.004), (-0.41, 0.76, 0.012), (-0.49, 0.52, 0.022), (-0.56, 0.30, 0.031), (-0.60, 0.16, 0.036)]
-    rings = [_ring(_circle(24, r * k, r * k, math.pi / 2), (x, 0, r * zc / 0.056), ey, ez) for x, k, zc in nose + mid + tail]
+    tail = [(-0.33, 0.93, 0.004), (-0.41, 0.76, 0.012), (-0.49, 0.52, 0.022), (-0.56, 0.30, 0.031),
+            (-0.60, 0.16, 0.036)]
+    rings = [_ring(_circle(24, r * k, r * k, math.pi / 2), (x, 0, r * zc / 0.056), ey, ez)
+             for x, k, zc in nose + mid + tail]
     parts: list[tuple[str, str, Mesh]] = [("fuselage", "fuselage", loft_mesh(rings))]
     sweep = math.tan(math.radians(27.0))
     dih = math.tan(math.radians(5.0))
@@ -554,7 +564,8 @@ def _airliner() -> list[tuple[str, str, Mesh]]:
     xle_e = le0 - ye * sweep
     zw = z0 + ye * dih
     ze = zw - 0.062
-    nac_st = [(xle_e + 0.085, 0.030), (xle_e + 0.07, 0.034), (xle_e + 0.02, 0.034), (xle_e - 0.02, 0.028), (xle_e - 0.04, 0.020)]
+    nac_st = [(xle_e + 0.085, 0.030), (xle_e + 0.07, 0.034), (xle_e + 0.02, 0.034), (xle_e - 0.02, 0.028),
+              (xle_e - 0.04, 0.020)]
     nac = loft_mesh([_ring(_circle(16, rr), (x, 0, 0), ey, ez) for x, rr in nac_st])
     pylon = box_mesh((xle_e - 0.005, 0.0, 0.5 * (0.03 + (zw - ze))), (0.07, 0.008, (zw - ze) - 0.03 + 0.01))
     engine = _xf(_merge(nac, pylon), None, (0.0, ye, ze))
@@ -590,7 +601,8 @@ def _helicopter(rotor_angle: float, main_blades: int) -> list[tuple[str, str, Me
     ey, ez = np.array([0, 1.0, 0]), np.array([0, 0, 1.0])
     # cabin + boom as one loft (x, half-width, half-height, centre z)
     st = [(0.22, 0.02, 0.03, -0.03), (0.20, 0.055, 0.065, -0.02), (0.14, 0.075, 0.085, -0.005), (0.04, 0.08, 0.09, 0.0),
-          (-0.07, 0.075, 0.085, 0.0), (-0.13, 0.045, 0.05, 0.01), (-0.2, 0.022, 0.025, 0.02), (-0.58, 0.012, 0.014, 0.03)]
+          (-0.07, 0.075, 0.085, 0.0), (-0.13, 0.045, 0.05, 0.01), (-0.2, 0.022, 0.025, 0.02),
+          (-0.58, 0.012, 0.014, 0.03)]
     fus = loft_mesh([_ring(_superellipse(16, hw, hh, 2.2), (x, 0, zc), ey, ez) for x, hw, hh, zc in st])
     parts: list[tuple[str, str, Mesh]] = [("fuselage", "fuselage", fus)]
     fin = _fin_loft([(0.02, -0.56, 0.07, 0.1), (0.12, -0.60, 0.04, 0.1)])

@@ -57,7 +57,8 @@ def material_for(target: Target, role: str) -> Material:
 
 
 def offset_for(target: Target, role: str, *, end: bool = False) -> float:
-    source = target.thermal.offsets_end_k if end and target.thermal.offsets_end_k is not None else target.thermal.offsets_k
+    source = (target.thermal.offsets_end_k if end and target.thermal.offsets_end_k is not None
+              else target.thermal.offsets_k)
     if role in source:
         return source[role]
     return _OFFSETS_K[target.kind].get(role, 2.0)

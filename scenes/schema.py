@@ -32,7 +32,8 @@ class _Model(BaseModel):
 #: a name used as one path component (scene names become output folder names)
 PLAIN_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,127}$"
 PlainName = Annotated[str, Field(pattern=PLAIN_NAME_PATTERN, min_length=1, max_length=128,
-                                 description="letters, digits and ._+- (not starting with . or -): used as a folder name")]
+                                 description="letters, digits and ._+- (not starting with . or -): used as a folder "
+                                             "name")]
 #: the radiometric counts' ceiling must sit this far above the hottest planned temperature
 THERMAL_HEADROOM_K = 20.0
 
@@ -184,7 +185,7 @@ class Atmosphere(_Model):
     - a named AFGL model: that model's sky and path tables (air temperature still sets L(T_air)).
     Humidity: ``relative_humidity`` (0-1) or ``absolute_humidity_g_m3`` (water-vapour density; it
     then sets relative_humidity, and both given must agree). ``visibility_m`` (Koschmieder, 2 % contrast) drives the visible haze and the LWIR aerosol.
-    """
+    """  # noqa: E501 (the model's JSON-schema description: kept as it is)
 
     air_temperature_k: float = Field(default=288.0, gt=200.0, lt=340.0)
     relative_humidity: float = Field(default=0.5, ge=0.0, le=1.0)
@@ -250,7 +251,8 @@ class RgbCamera(CameraIntrinsics):
         default="srgb", description="srgb: fixed exposure, sRGB curve; camcorder: whole-frame auto-exposure + "
                                     "BT.709 curve with a highlight knee (simulator/sensors/agc.py)")
     ae_key: float = Field(default=0.25, gt=0.0, le=1.0, description="camcorder: metered mean linear luminance target")
-    ae_damping: float = Field(default=0.9, ge=0.0, lt=1.0, description="camcorder: per-frame memory of the exposure (log)")
+    ae_damping: float = Field(default=0.9, ge=0.0, lt=1.0,
+                              description="camcorder: per-frame memory of the exposure (log)")
     knee_point: float = Field(default=0.85, gt=0.0, le=1.0, description="camcorder: output level where the knee starts")
     knee_slope: float = Field(default=0.25, gt=0.0, le=1.0, description="camcorder: slope factor above the knee")
 
@@ -279,7 +281,8 @@ class ThermalCamera(CameraIntrinsics):
     agc_linear_fraction: float = Field(default=0.2, ge=0.0, le=1.0, description="plateau: share of the linear map")
     agc_tail_fraction: float = Field(default=0.005, ge=0.0, lt=0.5, description="plateau: pixels ignored at each end")
     agc_min_span_k: float = Field(default=4.0, gt=0.0, le=200.0,
-                                  description="plateau: a scene narrower than this is not stretched to full range (max gain)")
+                                  description="plateau: a scene narrower than this is not stretched to full range (max "
+                                              "gain)")
     agc_damping: float = Field(default=0.9, ge=0.0, lt=1.0, description="plateau: per-frame memory of the transfer")
     agc_base_sigma_px: float = Field(default=0.0, ge=0.0, le=200.0,
                                      description="plateau: local contrast, Gaussian base (0 = off)")
@@ -365,7 +368,8 @@ class CameraRig(_Model):
             d = [a - b for a, b in zip(self.look_at_m, self.position_m)]
             length = sum(v * v for v in d) ** 0.5
             if length < 1e-3:
-                raise ValueError(f"look_at_m {list(self.look_at_m)} is the camera position: the camera would see nothing")
+                raise ValueError(f"look_at_m {list(self.look_at_m)} is the camera position: the camera would see "
+                                 "nothing")
             if (d[0] ** 2 + d[1] ** 2) ** 0.5 < 1e-3 * length:
                 raise ValueError(f"look_at_m {list(self.look_at_m)} is straight above/below position_m "
                                  f"{list(self.position_m)}: the camera's up direction is undefined (tilt it slightly)")
@@ -430,7 +434,8 @@ class ProceduralClutter(_Model):
 
     tree_lines: tuple[Annotated[int, Field(ge=0, le=20)], Annotated[int, Field(ge=0, le=20)]] = (2, 5)
     tree_distance_m: tuple[Annotated[float, Field(gt=5.0)], Annotated[float, Field(gt=5.0)]] = (150.0, 2000.0)
-    tree_span_deg: tuple[Annotated[float, Field(gt=0.0, le=360.0)], Annotated[float, Field(gt=0.0, le=360.0)]] = (20.0, 120.0)
+    tree_span_deg: tuple[Annotated[float, Field(gt=0.0, le=360.0)],
+                         Annotated[float, Field(gt=0.0, le=360.0)]] = (20.0, 120.0)
     tree_assets: list[str] = Field(default_factory=lambda: ["deciduous", "deciduous", "conifer"], min_length=1)
     buildings: tuple[Annotated[int, Field(ge=0, le=50)], Annotated[int, Field(ge=0, le=50)]] = (0, 4)
     building_distance_m: tuple[Annotated[float, Field(gt=5.0)], Annotated[float, Field(gt=5.0)]] = (100.0, 1500.0)
@@ -546,7 +551,8 @@ class Scenario(_Model):
         if ceiling < hottest + THERMAL_HEADROOM_K:
             need = (hottest + THERMAL_HEADROOM_K) / counts_max
             raise ValueError(
-                f"camera_rig.thermal.kelvin_per_count {kpc:g} puts the counts' ceiling ({counts_max}) at {ceiling:.1f} K, below the "
+                f"camera_rig.thermal.kelvin_per_count {kpc:g} puts the counts' ceiling ({counts_max}) at {ceiling:.1f} "
+                "K, below the "
                 f"hottest planned temperature {hottest:.1f} K ({where}) + {THERMAL_HEADROOM_K:g} K headroom: every "
                 f"hot pixel would clip; use kelvin_per_count >= {need:.3g}")
         return self

@@ -239,7 +239,8 @@ def _box(b: _Builder, asset_name: str, centre_xy: np.ndarray, yaw: float, size: 
     b.add(np.array(verts), np.array(faces), asset_name, np.array(normals), texture, dt_k)
 
 
-def _structure(b: _Builder, item: Building | Mast, relief: _Relief, rng: np.random.Generator, cx: float, cy: float) -> None:
+def _structure(b: _Builder, item: Building | Mast, relief: _Relief, rng: np.random.Generator, cx: float,
+               cy: float) -> None:
     asset = TERRAIN_ASSETS[item.asset]
     e, n = _compass(item.azimuth_deg)
     centre = np.array([cx + item.distance_m * e, cy + item.distance_m * n])
@@ -260,7 +261,8 @@ def _procedural(p, rng: np.random.Generator) -> tuple[list[TreeLine], list[Build
     trees = []
     for _ in range(count(p.tree_lines)):
         start, span = draw((0.0, 360.0)), draw(p.tree_span_deg)
-        trees.append(TreeLine(asset=p.tree_assets[int(rng.integers(len(p.tree_assets)))], distance_m=draw(p.tree_distance_m),
+        trees.append(TreeLine(asset=p.tree_assets[int(rng.integers(len(p.tree_assets)))],
+                              distance_m=draw(p.tree_distance_m),
                               azimuth_deg=(start, start + span)))
     buildings = [Building(asset=p.building_assets[int(rng.integers(len(p.building_assets)))],
                           distance_m=draw(p.building_distance_m), azimuth_deg=draw((0.0, 360.0)))
@@ -286,7 +288,8 @@ def build_terrain(scenario: Scenario, rng: np.random.Generator) -> TerrainMesh:
     b = _Builder()
     _ground(b, terrain, relief, noise, cx, cy)
     rig = scenario.camera_rig
-    pixel_rad = min(math.radians(rig.rgb.hfov_deg) / rig.rgb.width_px, math.radians(rig.thermal.hfov_deg) / rig.thermal.width_px)
+    pixel_rad = min(math.radians(rig.rgb.hfov_deg) / rig.rgb.width_px, math.radians(rig.thermal.hfov_deg)
+                    / rig.thermal.width_px)
     for line in trees:
         _tree_line(b, line, relief, rng, cx, cy, pixel_rad)
     for item in list(buildings) + list(masts):

@@ -23,15 +23,35 @@ from typing import Iterable, Iterator
 HASH_FILE = "files.sha256"
 
 
+@contextmanager
+def atomic_path(path: Path, *, suffix: str = "", hidden: bool = True) -> Iterator[Path]:
+    """The one atomic-write helper: yield a temporary sibling of ``path``,
+    ``[.]NAME.tmp-<run id>[suffix]``, for the caller to write; on success it is renamed over
+    ``path``, on any error removed, so ``path`` is never half-written.
+
+    For writers that want a file name (``torch.save``, ``np.savez``, ``fig.savefig``); text and
+    bytes go through :func:`write_atomic`. ``suffix``: for writers that append their own when it
+    is missing (``np.savez``: ``".npz"``). ``hidden=False`` for ``torch.save``, which names the
+    archive inside the file after the file name up to its last dot: ``NAME.tmp-<id>`` keeps it
+    ``NAME``, so the bytes do not depend on the temporary's name."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{'.' if hidden else ''}{path.name}.tmp-{run_id()}{suffix}")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
 def write_atomic(path: Path, data: str | bytes) -> None:
     """Write via a temporary sibling and rename (no half-written file on failure)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{run_id()}")
-    if isinstance(data, bytes):
-        tmp.write_bytes(data)
-    else:
-        tmp.write_text(data)
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        if isinstance(data, bytes):
+            tmp.write_bytes(data)
+        else:
+            tmp.write_text(data)
 
 
 def hash_tree(folder: Path) -> dict[str, str]:
@@ -141,12 +161,15 @@ def is_evids_output(folder: Path) -> bool:
         return fmt in ("evids-native-dataset", "trident") and (folder / "manifest.json").is_file()
     if (folder / "config.yaml").is_file() and (folder / "run.json").is_file():
         return True  # an experiment run folder
+    if (folder / "config.json").is_file() and (folder / "data.json").is_file():
+        return True  # a detection run folder
     return (folder / "meta.json").is_file() and (folder / HASH_FILE).is_file()
 
 
 def _is_empty_dir(folder: Path) -> bool:
     """No entries besides evids' own bookkeeping (a lock or marker left by a killed run)."""
-    return folder.is_dir() and not folder.is_symlink() and all(c.name in (LOCK_FILE, MARKER_FILE) for c in folder.iterdir())
+    return folder.is_dir() and not folder.is_symlink() and all(c.name in (LOCK_FILE, MARKER_FILE)
+                                                               for c in folder.iterdir())
 
 
 def _overlaps(a: Path, b: Path) -> bool:
@@ -208,7 +231,7 @@ def _pid_alive(pid: int) -> bool:
 def clean_dead_temps(parent: Path, name: str | None = None) -> list[Path]:
     """Remove hidden temp/old folders under ``parent`` (for ``name`` only, if given) whose owning
     run is dead (same host, pid gone); a live run's temporaries are never touched. Returns them."""
-    removed = []
+    removed: list[Path] = []
     parent = Path(parent)
     if not parent.is_dir():
         return removed
@@ -413,7 +436,8 @@ def environment_record() -> dict:
     if (SOURCE_ROOT / ".git").exists():
         try:
             def git(*args: str) -> subprocess.CompletedProcess:
-                return subprocess.run(["git", "-C", str(SOURCE_ROOT), *args], capture_output=True, text=True, timeout=20)
+                return subprocess.run(["git", "-C", str(SOURCE_ROOT), *args], capture_output=True, text=True,
+                                      timeout=20)
 
             head = git("rev-parse", "HEAD")
             if head.returncode == 0:

@@ -1,4 +1,9 @@
-"""Named random streams: every draw comes from SeedSequence([seed, stream_id, *indices])."""
+"""Named random streams: every draw comes from SeedSequence([seed, stream_id, *indices]).
+
+Every stream id lives in :data:`STREAMS` (unique values; ``tests/simulator/test_seeding.py`` fails
+on a duplicate, on an ``rng_for`` name that is not registered, and on a ``SeedSequence([seed, 123, ...])``
+with a literal id anywhere in the packages). The last three were literals at their call sites
+before and keep their values, so every seeded output is unchanged."""
 from __future__ import annotations
 
 import numpy as np
@@ -15,6 +20,9 @@ STREAMS = {
     "sim2real": 9,
     "terrain": 10,
     "tracking": 11,
+    "fusion_init": 99,          # E2 fusion heads' initialisation (evids.experiments.pipeline)
+    "detection": 1600,          # the detection experiment (evids.experiments.detection.data)
+    "clip_split": 0x5B117,      # E2 train/val/test split of clips (evids.experiments.data)
 }
 
 

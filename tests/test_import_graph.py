@@ -16,23 +16,26 @@ ALLOWED: dict[str, set[str]] = {
     "degradations": {"scenes"},   # only scenes.errors / scenes.yaml_safe (bounded YAML), lazily
     "simulator.seeding": {"scenes"},
     "simulator.files": {"scenes"},
-    "simulator.physics": {"scenes", "simulator.seeding"},
+    "simulator.jobs": {"scenes"},   # the one executor (process pools, Ray), lazily scenes.errors
+    "simulator.physics": {"scenes", "simulator.seeding", "simulator.files"},  # files: the LOWTRAN table script
     "simulator.sensors": {"scenes", "simulator.seeding", "simulator.physics"},
     "simulator.render": {"scenes", "simulator.seeding", "simulator.physics", "simulator.sensors"},
     "simulator.formats": {"scenes", "simulator.seeding", "simulator.files", "simulator.physics", "simulator.sensors"},
-    "simulator.dataset": {"scenes", "degradations", "simulator.seeding", "simulator.files", "simulator.physics",
+    "simulator.dataset": {"scenes", "degradations", "simulator.seeding", "simulator.files", "simulator.jobs",
+                          "simulator.physics",
                           "simulator.sensors", "simulator.render", "simulator.formats"},
     "simulator": set(),
     "evids.core": {"scenes"},
-    "evids.data": {"scenes", "simulator.formats", "evids.core"},
     "evids.runfolder": {"scenes", "simulator.files", "evids.core"},
     "evids.report": {"scenes", "simulator.files", "evids.core", "evids.runfolder"},
-    "evids.experiments": {"scenes", "degradations", "simulator.seeding", "simulator.files", "simulator.physics",
-                          "simulator.sensors", "simulator.formats", "simulator.dataset", "evids.core", "evids.data",
+    "evids.experiments": {"scenes", "degradations", "simulator.seeding", "simulator.files", "simulator.jobs",
+                          "simulator.physics",
+                          "simulator.sensors", "simulator.formats", "simulator.dataset", "evids.core",
                           "evids.runfolder", "evids.report"},
-    "evids.cli": {"scenes", "degradations", "simulator.seeding", "simulator.files", "simulator.physics",
+    "evids.cli": {"scenes", "degradations", "simulator.seeding", "simulator.files", "simulator.jobs",
+                  "simulator.physics",
                   "simulator.sensors", "simulator.render", "simulator.formats", "simulator.dataset", "evids.core",
-                  "evids.data", "evids.runfolder", "evids.report", "evids.experiments"},
+                  "evids.runfolder", "evids.report", "evids.experiments"},
 }
 EVIDS_CORE = {"heads", "losses", "fusion", "gating", "metrics", "models", "__init__"}
 
@@ -117,7 +120,8 @@ def test_the_checker_catches_upward_imports():
     """The rules bite: each of these (lazy, relative or plain) is refused; a downward import passes."""
     cases = {
         ("scenes.loader", "scenes/loader.py"): "from evids.errors import UserInputError\n",
-        ("evids.report.html", "evids/report/html.py"): "def f():\n    from evids.experiments.runner import write_json\n",
+        ("evids.report.html",
+         "evids/report/html.py"): "def f():\n    from evids.experiments.runner import write_json\n",
         ("simulator.formats.native", "simulator/formats/native.py"): "from ..render import renderer\n",
         ("simulator.physics.sky", "simulator/physics/sky.py"): "from simulator import dataset\n",
         ("degradations.video", "degradations/video.py"): "import simulator.formats.native\n",

@@ -4,10 +4,10 @@ allows, and every pin carries a sha256 hash. Refresh: `bash lock/refresh`."""
 from __future__ import annotations
 
 import re
-import tomllib
 from pathlib import Path
 
 import pytest
+import tomllib
 from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name
 from packaging.version import Version

@@ -13,7 +13,8 @@ def degrade(
     spec: Path = typer.Option(..., "--spec", help="Degradation spec (YAML or JSON; see docs/DEGRADATIONS.md)."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder for the degraded copies."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of every degradation draw."),
-    overwrite: bool = typer.Option(False, "--overwrite", help="Replace degraded copies an earlier `evids degrade` wrote."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace degraded copies an earlier `evids degrade` wrote."),
 ) -> None:
     """Degrade RGB and thermal frames of native sequences by a spec; writes each sequence with a
     degradation_record.json (per-frame severity and compromised flags per modality).

@@ -33,13 +33,11 @@ def train(
     """
     from evids.experiments import load_experiment_config
     from evids.experiments.runner import stage_train
-    from simulator.files import DatasetLock, check_output, write_marker
+    from evids.runfolder import create_run_folder
+    from simulator.files import DatasetLock
 
     cfg = load_experiment_config(config)  # validated in full (evids.experiments.validate) before any work
-    inputs = [config] + ([Path(cfg.dataset.path)] if cfg.dataset.path else [])
-    check_output(out, inputs=inputs, allow_resume=True)
-    out.mkdir(parents=True, exist_ok=True)
-    write_marker(out, "run")
+    create_run_folder(out, inputs=[config] + ([Path(cfg.dataset.path)] if cfg.dataset.path else []))
     with DatasetLock(out, "train"):  # one writer per run folder
         stage_train(cfg, out, progress)
     typer.echo(f"trained: {out / 'models.pt'}")
@@ -62,7 +60,8 @@ def evaluate(
 
 def sweep(
     run: Path = typer.Argument(..., help="A run folder written by `evids train`."),
-    only: str = typer.Option(",".join(_STUDIES), "--only", help="Comma-separated subset of: degradation,conflict,gate."),
+    only: str = typer.Option(",".join(_STUDIES), "--only",
+                             help="Comma-separated subset of: degradation,conflict,gate."),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
 ) -> None:
     """Degradation sweep (severity grid per modality), conflict study (scheduled conflict programs)
@@ -87,7 +86,8 @@ def sweep(
 
 def report(run: Path = typer.Argument(..., help="A run folder after `evids evaluate` (and optionally `sweep`)."),
            progress: bool = typer.Option(False, "--progress/--no-progress",
-                                         help="Accepted like every command's (the report shows no progress bar).")) -> None:
+                                         help="Accepted like every command's (the report shows no progress bar)."),
+           ) -> None:
     """Write RUN/report.html (self-contained, opens offline) and RUN/metrics.json."""
     from evids.report import build_report
 
@@ -101,7 +101,8 @@ def demo(
     quick: bool = typer.Option(False, "--quick", help="Toy scale (about 1-2 minutes) instead of the full demo."),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
     detection: bool = typer.Option(False, "--detection", help="Run the reduced detection experiment (RGB/thermal "
-                                   "detectors, fusion, tracking; budget 15 minutes on 2 cores) into OUT/detection instead."),
+                                   "detectors, fusion, tracking; budget 15 minutes on 2 cores) into OUT/detection "
+                                   "instead."),
 ) -> None:
     """The main job: generate a small seeded RGB + audio + RF scenario set, train sigmoid and
     evidential models, run all ablation conditions, a reduced degradation sweep, the conflict study
@@ -109,19 +110,20 @@ def demo(
     """
     if detection:
         from evids.cli import TRACKEVAL_INSTALL, require_module
-        from evids.experiments.detection import run_detection_demo
 
         require_module("trackeval", "evids demo --detection", TRACKEVAL_INSTALL)
+    from evids.runfolder import create_run_folder
+    from simulator.files import DatasetLock
 
-        typer.echo(f"report: {run_detection_demo(out, typer.echo)}")
-        return
-    from evids.experiments import run_demo
-    from simulator.files import DatasetLock, check_output, write_marker
-
-    check_output(out, allow_resume=True)
-    out.mkdir(parents=True, exist_ok=True)
-    write_marker(out, "run")
+    create_run_folder(out)
     with DatasetLock(out, "demo"):
+        if detection:
+            from evids.experiments.detection import run_detection_demo
+
+            typer.echo(f"report: {run_detection_demo(out, typer.echo)}")
+            return
+        from evids.experiments import run_demo
+
         times = run_demo(out, quick=quick, progress=progress, log=typer.echo)
     typer.echo(f"total: {sum(times.values()):.1f} s")
     typer.echo(f"report: {out / 'report.html'}")
@@ -143,8 +145,8 @@ def audit(
     Example: evids audit out/demo/data
     """
     from evids.experiments.audit import audit_clips, dataset_split
-    from evids.metrics.significance import separating_digits
     from evids.experiments.data import load_clips
+    from evids.metrics.significance import separating_digits
     from simulator.files import write_atomic
 
     if not Path(dataset).is_dir():

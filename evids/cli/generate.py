@@ -28,13 +28,16 @@ def _formats(text: str) -> tuple[str, ...]:
 def generate(
     config: str = typer.Argument(..., help="A generation YAML, a generation preset (scenes/generation/, e.g. "
                                  "mixed_small) or a scene preset (that scene with default randomisation)."),
-    out: Path = typer.Option(..., "--out", "-o", help="Dataset folder (new, or an unfinished/identical run to resume)."),
+    out: Path = typer.Option(..., "--out", "-o",
+                             help="Dataset folder (new, or an unfinished/identical run to resume)."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of every random draw."),
-    sequences: Optional[int] = typer.Option(None, "--sequences", min=1, help="Number of sequences (default: the config's)."),
+    sequences: Optional[int] = typer.Option(None, "--sequences", min=1,
+                                            help="Number of sequences (default: the config's)."),
     frames: Optional[int] = typer.Option(None, "--frames", min=1, help="Frames per sequence (default: the config's)."),
     workers: int = typer.Option(1, "--workers", "-w", min=1, help="Parallel worker processes (or Ray CPUs)."),
     executor: str = typer.Option("local", "--executor", help="local (process pool) or ray."),
-    ray_address: Optional[str] = typer.Option(None, "--ray-address", help="Ray cluster address (default: start a local Ray)."),
+    ray_address: Optional[str] = typer.Option(None, "--ray-address",
+                                              help="Ray cluster address (default: start a local Ray)."),
     fmt: str = typer.Option("native", "--format", help="native plus any of antiuav, antiuav_rgbt, mot, coco "
                             "(comma-separated); or trident (TRIDENT clip datasets)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace a different dataset already in --out."),
@@ -93,7 +96,8 @@ def export(
     dataset: Path = typer.Argument(..., help="A native dataset folder (made by `evids generate`), or a TRIDENT clip "
                                    "dataset (made by `evids generate --format trident`)."),
     fmt: str = typer.Option(..., "--format", help="native datasets: antiuav, antiuav_rgbt, antiuav2021, mot, coco, "
-                            "webdataset, zarr (float32 thermal kelvin stacks, chunked per frame; needs the zarr extra); TRIDENT clip datasets: trident (the public layout), webdataset "
+                            "webdataset, zarr (float32 thermal kelvin stacks, chunked per frame; needs the zarr "
+                            "extra); TRIDENT clip datasets: trident (the public layout), webdataset "
                             "(comma-separated for several)."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default DATASET/<format>); one "
                                        "format: written here; several: OUT/<format>."),
@@ -109,7 +113,8 @@ def export(
                              "'evids' (correct) or 'trident' (the public code's, bit for bit)."),
     test_fraction: float = typer.Option(0.2, "--test-fraction", min=0.0, max=0.99, help="trident: share of clips "
                                         "per class in Test/ (the rest in Train/)."),
-    shard_mb: float = typer.Option(500.0, "--shard-mb", min=0.001, help="webdataset: start a new shard past this size."),
+    shard_mb: float = typer.Option(500.0, "--shard-mb", min=0.001,
+                                   help="webdataset: start a new shard past this size."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace an export an earlier `evids export` wrote."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
 ) -> None:
@@ -136,7 +141,7 @@ def export(
 
     targets = {f: (out if len(formats) == 1 else out / f) if out is not None else dataset / f
                for f in dict.fromkeys(formats)}
-    for f, target in targets.items():  # all refused before any is written
+    for target in targets.values():  # all refused before any is written
         if (dataset / "manifest.json").is_file():
             check_output(target, inputs=export_inputs(dataset, target), overwrite=overwrite)
     mode: bool | str | None = distractors
@@ -173,7 +178,8 @@ def fixture(
     out: Path = typer.Option(..., "--out", "-o", help="Output folder (new or empty)."),
     preset: str = typer.Option("clear_day_quad", "--preset", help="Scene preset to render."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed."),
-    overwrite: bool = typer.Option(False, "--overwrite", help="Replace a fixture folder an earlier `evids fixture` wrote."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace a fixture folder an earlier `evids fixture` wrote."),
 ) -> None:
     """Write a tiny regression dataset (the pytest plugin's fixtures; bytes stable per package version).
 

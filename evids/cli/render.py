@@ -17,7 +17,8 @@ def _parse_formats(text: str) -> tuple[str, ...]:
     formats = tuple(f.strip() for f in text.split(",") if f.strip())
     bad = [f for f in formats if f not in FORMATS]
     if bad or not formats:
-        raise UserInputError(f"--format: unknown format(s) {bad or [text]}; valid: {', '.join(FORMATS)} (comma-separated)")
+        raise UserInputError(f"--format: unknown format(s) {bad or [text]}; valid: {', '.join(FORMATS)} "
+                             "(comma-separated)")
     return formats
 
 
@@ -27,8 +28,10 @@ def render(
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (default: the scenario's own seed, else 0)."),
     frames: Optional[int] = typer.Option(None, "--frames", min=1, help="Render only the first K frames."),
     fmt: str = typer.Option("native", "--format", help="native and/or antiuav, comma-separated."),
-    preview: bool = typer.Option(False, "--preview", help="Also write OUT/<name>_preview.png (RGB | thermal contact sheet)."),
-    overwrite: bool = typer.Option(False, "--overwrite", help="Replace OUT/<scenario name>/ if an earlier evids render wrote it."),
+    preview: bool = typer.Option(False, "--preview",
+                                 help="Also write OUT/<name>_preview.png (RGB | thermal contact sheet)."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace OUT/<scenario name>/ if an earlier evids render wrote it."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
 ) -> None:
     """Render a scenario to paired RGB + thermal frames, masks and labels.

@@ -11,8 +11,10 @@ def sim2real(
                               "mirror of its repository (read in place; nothing is copied)."),
     out: Path = typer.Option(Path("out/sim2real"), "--out", "-o", help="Run folder (created; the synthetic "
                              "counterpart is cached in it and a rerun resumes)."),
-    config: Path = typer.Option(None, "--config", "-c", help="Protocol file (default: examples/sim2real_svanstrom.yaml)."),
-    quick: bool = typer.Option(False, "--quick", help="Toy scale (tiny renders, few epochs) for tests and a first look."),
+    config: Path = typer.Option(None, "--config", "-c",
+                                help="Protocol file (default: examples/sim2real_svanstrom.yaml)."),
+    quick: bool = typer.Option(False, "--quick",
+                               help="Toy scale (tiny renders, few epochs) for tests and a first look."),
     strict: bool = typer.Option(False, "--strict", help="Stop at the first real clip that fails the reader's checks "
                                 "(default: skip it and list it in OUT/skipped.txt)."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
@@ -28,17 +30,16 @@ def sim2real(
     """
     from evids.experiments.sim2real.config import DEFAULT_CONFIG
     from evids.experiments.sim2real.harness import format_table, run_sim2real
+    from evids.runfolder import create_run_folder
     from scenes.errors import UserInputError
-    from simulator.files import DatasetLock, check_output, write_marker
+    from simulator.files import DatasetLock
 
     if not real.exists():
         raise UserInputError(f"--real: {str(real)!r} does not exist")
     cfg_path = config if config is not None else DEFAULT_CONFIG
     if not Path(cfg_path).is_file():
         raise UserInputError(f"--config: {str(cfg_path)!r} does not exist")
-    check_output(out, inputs=[real, cfg_path], allow_resume=True)
-    out.mkdir(parents=True, exist_ok=True)
-    write_marker(out, "run")
+    create_run_folder(out, inputs=[real, cfg_path])
     with DatasetLock(out, "sim2real"):
         summary = run_sim2real(real, out, config_path=cfg_path, quick=quick, strict=strict, progress=progress,
                                log=typer.echo)

@@ -150,7 +150,8 @@ def audit_clips(clips: list[ClipArrays], split: dict[str, list[int]], settings: 
 
     for name in ("train", "test"):
         if not split.get(name):
-            raise UserInputError(f"split.{name}: the dataset has no {name} clips; the audit needs train and test splits")
+            raise UserInputError(f"split.{name}: the dataset has no {name} clips; the audit needs train and test "
+                                 "splits")
     by_id = {c.clip_id: c for c in clips}
     used = split["train"] + split["test"]
     has_twins = all(clips[i].twin in by_id for i in used if clips[i].label == 0)
@@ -185,7 +186,8 @@ def audit_clips(clips: list[ClipArrays], split: dict[str, list[int]], settings: 
                           UNDECIDED: "undecided (the CI neither clears chance by the tolerance nor lies within it)",
                           }.get(verdict, "SHORTCUT: beats chance beyond its CI" if decisive else
                                 "drone signal in these features (the twin counterfactual decides)")
-                out.append({**row, "score": score, "ci_low": lo, "ci_high": hi, "beats_chance": bool(beats), "verdict": verdict,
+                out.append({**row, "score": score, "ci_low": lo, "ci_high": hi, "beats_chance": bool(beats),
+                            "verdict": verdict,
                             "decisive": decisive, "ci_includes_chance": bool(lo <= 0.5 <= hi),
                             "within_tolerance": bool(abs(score - 0.5) <= tolerance), "status": status})
     decisive_rows = [r for r in out if r.get("decisive") and r["score"] is not None]

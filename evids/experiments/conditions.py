@@ -73,11 +73,6 @@ class Prediction:
     log_probs: np.ndarray | None = None    # exact (N, 2) log-probabilities (entropies without ties)
 
 
-def _two(p1: np.ndarray) -> np.ndarray:
-    p1 = np.clip(np.asarray(p1, np.float64), 0.0, 1.0)
-    return np.stack([1.0 - p1, p1], axis=1)
-
-
 def _from_logit(z: np.ndarray) -> Prediction:
     """Sigmoid P(class 1) = sigmoid(z) with exact log-probabilities."""
     z = np.asarray(z, np.float64)

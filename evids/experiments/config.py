@@ -62,7 +62,8 @@ class SplitConfig(_Model):
 class ModelsConfig(_Model):
     """Backbone sizes, the unimodal training loop and the stage-2 fusion heads."""
 
-    seeds: list[int] = Field(default=[0, 1, 2], min_length=1, description="training seeds (>= 3 for a training-variance +-)")
+    seeds: list[int] = Field(default=[0, 1, 2], min_length=1,
+                             description="training seeds (>= 3 for a training-variance +-)")
     width: int = Field(default=8, ge=2, le=256)
     embedding: int = Field(default=32, ge=4, le=1024)
     video_pool: int = Field(default=4, ge=1, le=8, description="stride of the first (full-resolution) video conv")
@@ -106,8 +107,10 @@ class ProtocolConfig(_Model):
     spectrogram-domain RF noise (conditions d', g), ``rf_iq`` adds I/Q noise before the STFT (i)."""
 
     noise_seeds: list[int] = Field(default=[42, 123, 456], min_length=1)
-    audio: list[NoiseEntry] = Field(default_factory=lambda: [NoiseEntry(name="audio.white_noise", params={"snr_db": 10.0})])
-    video: list[NoiseEntry] = Field(default_factory=lambda: [NoiseEntry(name="video.gaussian_noise", params={"sigma": 0.18})])
+    audio: list[NoiseEntry] = Field(default_factory=lambda: [NoiseEntry(name="audio.white_noise",
+                                                                        params={"snr_db": 10.0})])
+    video: list[NoiseEntry] = Field(default_factory=lambda: [NoiseEntry(name="video.gaussian_noise",
+                                                                        params={"sigma": 0.18})])
     rf_spec: list[NoiseEntry] = Field(default_factory=lambda: [
         NoiseEntry(name="rf.spec_pink_noise", params={"snr_db": 0.0}),
         NoiseEntry(name="rf.spec_time_mask", params={"mask_fraction": 0.3})])
@@ -177,7 +180,8 @@ class ConflictConfig(_Model):
     onset_fraction: float = Field(default=0.25, ge=0.0, lt=1.0)
     duration_fraction: float = Field(default=0.5, gt=0.0, le=1.0)
     severity: float = Field(default=5.0, gt=0.0, le=5.0)
-    min_flip_rate: float = Field(default=0.5, ge=0.0, le=1.0, description="a program below this is reported as not biting")
+    min_flip_rate: float = Field(default=0.5, ge=0.0, le=1.0,
+                                 description="a program below this is reported as not biting")
     inert_flip_rate: float = Field(default=0.05, ge=0.0, le=1.0, description="a program below this is marked inert")
 
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from evids.experiments.config import DatasetConfig, SplitConfig
 from scenes.errors import UserInputError
+from simulator.seeding import STREAMS
 
 SPLITS = ("train", "val", "test")
 
@@ -196,7 +197,7 @@ def _split_by_scene(clips: list[ClipArrays], cfg: SplitConfig) -> dict[str, list
     if len(groups) < len(SPLITS):
         raise UserInputError(f"split.unit: {cfg.unit!r} splits need >= {len(SPLITS)} {cfg.unit} groups to keep "
                              f"train/val/test disjoint, the dataset has {len(groups)}")
-    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x5B117]))
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, STREAMS["clip_split"]]))
     out: dict[str, list[int]] = {s: [] for s in SPLITS}
     for key in sorted(strata):
         names = strata[key]

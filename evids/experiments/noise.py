@@ -67,7 +67,8 @@ def degrade_clip(clip: ClipArrays, clip_index: int, noise_seed: int, *, audio: l
             vid = _apply(e, vid, item_seed(noise_seed, clip_index, "video", k))
     if rf_iq:
         if clip.iq is None or rf_config is None:
-            raise ValueError(f"clip {clip.clip_id} has no I/Q capture (rf_iq/ folder); I/Q-level RF noise is impossible")
+            raise ValueError(f"clip {clip.clip_id} has no I/Q capture (rf_iq/ folder); I/Q-level RF noise is "
+                             "impossible")
         from simulator.physics.rf import RFConfig, spectrogram_dbm, spectrogram_image
 
         iq = clip.iq

@@ -6,6 +6,8 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -15,6 +17,9 @@ from evids.experiments.data import Prepared, labels_of, stack
 from evids.fusion import GMU, LateFusion
 from evids.models.backbones import MODALITIES, UnimodalModel, build_model, seeded_init
 from evids.models.train import TrainResult, predict, train_model
+from simulator.files import atomic_path
+from simulator.jobs import iter_jobs, job_context
+from simulator.seeding import STREAMS
 
 HEADS = ("sigmoid", "evidential")
 
@@ -102,7 +107,8 @@ def gmu_logit(models: Models, out: Outputs, clean_fit: bool = False) -> np.ndarr
         return head([torch.from_numpy(e) for e in out.emb]).squeeze(-1).double().numpy()
 
 
-def _train_fusion(module: torch.nn.Module, forward, y: np.ndarray, epochs: int, lr: float, logits_out: bool) -> list[float]:
+def _train_fusion(module: torch.nn.Module, forward, y: np.ndarray, epochs: int, lr: float,
+                  logits_out: bool) -> list[float]:
     target = torch.from_numpy(y.astype(np.float64)).float()
     opt = torch.optim.Adam(module.parameters(), lr=lr)
     losses = []
@@ -124,12 +130,10 @@ def training_seed_base(seed: int) -> int:
 
 
 _INPUT_KEY = {"audio": "mfcc", "video": "video", "rf": "rf"}
-_FORKED: dict = {}  # the training arrays, inherited by forked training workers (never pickled)
-
-
 def _train_job(mc, modality: str, head: str, train_seed: int) -> tuple[dict, dict]:
-    """Train one unimodal model on the arrays in ``_FORKED``; (state dict, record)."""
-    x, y_tr, y_va = _FORKED["x"], _FORKED["y_tr"], _FORKED["y_va"]
+    """Train one unimodal model on the arrays in the job context; (state dict, record)."""
+    arrays = job_context()
+    x, y_tr, y_va = arrays["x"], arrays["y_tr"], arrays["y_va"]
     torch.set_num_threads(mc.torch_threads)
     init_seed, order_seed = model_seed(training_seed_base(train_seed), modality, head)
     model = build_model(modality, head, init_seed, mc.width, mc.embedding, mc.video_pool, mc.video_frames)
@@ -138,36 +142,13 @@ def _train_job(mc, modality: str, head: str, train_seed: int) -> tuple[dict, dic
     return model.state_dict(), {"init_seed": init_seed, "order_seed": order_seed, **res.to_json()}
 
 
-def forked_map(fn: Callable, calls: list[tuple], workers: int, label: str | None = None):
+def forked_map(fn: Callable, calls: list[tuple], workers: int, label: str | None = None, context: Any = None):
     """Yield (i, fn(*calls[i])) for every call, in completion order: in ``workers`` forked
     processes (they inherit this process's memory, so large inputs are never pickled), else
-    in-process; with a progress bar when ``label`` is given."""
-    bar = task = None
-    if label is not None:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-        task = bar.add_task("jobs", total=len(calls))
-        bar.start()
-    try:
-        if workers <= 1 or len(calls) <= 1:
-            for i, call in enumerate(calls):
-                yield i, fn(*call)
-                if bar is not None:
-                    bar.advance(task)
-            return
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=mp.get_context("fork")) as pool:
-            futures = {pool.submit(fn, *call): i for i, call in enumerate(calls)}
-            for future in as_completed(futures):
-                yield futures[future], future.result()
-                if bar is not None:
-                    bar.advance(task)
-    finally:
-        if bar is not None:
-            bar.stop()
+    in-process; with a progress bar when ``label`` is given; ``context`` is what
+    ``simulator.jobs.job_context()`` returns inside ``fn`` (see simulator.jobs)."""
+    start = "fork" if workers > 1 and len(calls) > 1 else "inline"
+    return iter_jobs(fn, calls, workers=workers, start=start, progress=label, context=context)
 
 
 def train_unimodal(cfg: ExperimentConfig, prep: Prepared, seeds: list[int], progress: bool = True
@@ -176,20 +157,18 @@ def train_unimodal(cfg: ExperimentConfig, prep: Prepared, seeds: list[int], prog
     (seed x modality x head) in ``models.train_workers`` forked processes, longest (video) first.
     Each job's weights depend only on its seeds, so the result is the same for any worker count."""
     tr, va = prep.split["train"], prep.split["val"]
-    _FORKED.update(x={s: {k: stack(prep.clips, idx, k) for k in ("mfcc", "video", "rf")}
-                      for s, idx in (("train", tr), ("val", va))},
-                   y_tr=labels_of(prep.clips, tr), y_va=labels_of(prep.clips, va))
+    arrays = dict(x={s: {k: stack(prep.clips, idx, k) for k in ("mfcc", "video", "rf")}
+                     for s, idx in (("train", tr), ("val", va))},
+                  y_tr=labels_of(prep.clips, tr), y_va=labels_of(prep.clips, va))
     mc = cfg.models
     order = {"video": 0, "rf": 1, "audio": 2}
     jobs = sorted(((s, m, h) for s in seeds for m in MODALITIES for h in HEADS), key=lambda j: order[j[1]])
     calls = [(mc, m, h, s) for s, m, h in jobs]
     label = f"training unimodal models ({len(seeds)} seeds)" if progress else None
-    try:
-        # fork: the workers inherit the arrays (pickling ~0.7 GB of video per worker is avoided);
-        # torch has run no parallel region in this process yet (1 thread), so forking is safe
-        done = {jobs[i]: r for i, r in forked_map(_train_job, calls, mc.train_workers, label)}
-    finally:
-        _FORKED.clear()
+    # fork: the workers inherit the arrays (pickling ~0.7 GB of video per worker is avoided);
+    # torch has run no parallel region in this process yet (1 thread), so forking is safe
+    done = {jobs[i]: r for i, r in forked_map(_train_job, calls, mc.train_workers, label, context=arrays)}
+    del arrays
     results = []
     for seed in seeds:
         unimodal, record = {}, {"train_seed": int(seed), "unimodal": {}}
@@ -225,7 +204,7 @@ def train_all(cfg: ExperimentConfig, prep: Prepared, progress: bool = True, trai
     out_tr = encode(stub, x["train"]["mfcc"], x["train"]["video"], x["train"]["rf"])
     noisy = val_noisy if val_noisy is not None else x["val"]
     out_va = encode(stub, noisy["mfcc"], noisy["video"], noisy["rf"])
-    fs = int(np.random.SeedSequence([int(train_seed), 99]).generate_state(1, dtype=np.uint32)[0])
+    fs = int(np.random.SeedSequence([int(train_seed), STREAMS["fusion_init"]]).generate_state(1, dtype=np.uint32)[0])
     heads = {}
     for name, out, y in (("val_noisy", out_va, y_va), ("train_clean", out_tr, y_tr)):
         with seeded_init(fs):
@@ -273,11 +252,8 @@ def _state(models: Models) -> dict:
 
 def save_models(models: list[Models], path) -> None:
     """Atomic torch.save of every training seed's state dicts."""
-    import os
-
-    tmp = f"{path}.tmp-{os.getpid()}"
-    torch.save({"runs": [_state(m) for m in models]}, tmp)
-    os.replace(tmp, path)
+    with atomic_path(Path(path), hidden=False) as tmp:  # torch: archive named "models.pt" as before
+        torch.save({"runs": [_state(m) for m in models]}, tmp)
 
 
 def _load_one(cfg: ExperimentConfig, state: dict) -> Models:
@@ -292,7 +268,8 @@ def _load_one(cfg: ExperimentConfig, state: dict) -> Models:
     heads = []
     for name in ("late", "gmu", "late_clean", "gmu_clean"):
         with seeded_init(0):
-            mod = LateFusion(3) if name.startswith("late") else GMU([mc.embedding] * 3, mc.gmu_hidden, 1, gate="sigmoid")
+            mod = LateFusion(3) if name.startswith("late") else GMU([mc.embedding] * 3, mc.gmu_hidden, 1,
+                                                                    gate="sigmoid")
         mod.load_state_dict(state[name])
         mod.eval()
         heads.append(mod)

@@ -3,7 +3,6 @@ study, gate sweep with realised CPU timing) -> report. Each stage writes its fil
 (temporary name, then rename) and records itself in ``run.json`` only when complete."""
 from __future__ import annotations
 
-import os
 import time
 import zlib
 from dataclasses import dataclass, field
@@ -50,12 +49,12 @@ from evids.experiments.pipeline import (
 )
 from evids.gating import GateParams, HysteresisGate, sweep_gates
 from evids.metrics import paired_bootstrap, paired_permutation_test
-from evids.models.backbones import MODALITIES
 from evids.metrics.significance import UNDECIDED, comparison_verdict
+from evids.models.backbones import MODALITIES
 from evids.runfolder import mark_stage, write_csv, write_json
-from simulator.files import environment_record
 from scenes.errors import UserInputError
-from simulator.files import write_atomic
+from simulator.files import atomic_path, environment_record, write_atomic
+from simulator.jobs import job_context
 
 VARIANTS = ("clean", "standard", "all_spec", "iq")
 NOISE_STREAMS = ("audio", "video", "rf_spec", "rf_iq")
@@ -220,12 +219,8 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
     trained = train_unimodal(cfg, prep, list(cfg.models.seeds), progress)
     # stage 2 (fusion heads, temperatures) of every training seed as forked jobs (identical results
     # for any worker count: each depends only on its own seed's models and the shared inputs)
-    _FORKED_CTX["train"] = (cfg, prep, val_noisy, trained)
-    try:
-        done = dict(forked_map(_fusion_job, [(k,) for k in range(len(trained))], cfg.models.train_workers,
-                               "fitting fusion heads" if progress else None))
-    finally:
-        _FORKED_CTX.clear()
+    done = dict(forked_map(_fusion_job, [(k,) for k in range(len(trained))], cfg.models.train_workers,
+                           "fitting fusion heads" if progress else None, context=(cfg, prep, val_noisy, trained)))
     models = [done[k][0] for k in range(len(trained))]
     records = [done[k][1] for k in range(len(trained))]
     record = {"runs": records}
@@ -249,7 +244,7 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
 
 def _fusion_job(k: int) -> tuple:
     """train_all's stage 2 for the k-th training seed (in a worker)."""
-    cfg, prep, val_noisy, trained = _FORKED_CTX["train"]
+    cfg, prep, val_noisy, trained = job_context()
     torch.set_num_threads(cfg.models.torch_threads)
     return train_all(cfg, prep, False, cfg.models.seeds[k], val_noisy, trained=trained[k])
 
@@ -295,8 +290,6 @@ def compare(ctx: Context, name: str, correct_a: np.ndarray, correct_b: np.ndarra
     noise seeds): scene-clustered sign-flip permutation p, MDE at 80 % power, clustered bootstrap CI,
     and the verdict of evids.metrics.significance.comparison_verdict ("A beats B", "B beats A",
     "no difference", "undecided")."""
-    from evids.metrics import accuracy  # noqa: F401  (kept for API symmetry)
-
     bc = ctx.cfg.bootstrap
     n_cl = len(set(clusters.tolist())) if len(clusters) else 0
     row = {"comparison": name, "n_segments": len(clusters), "n_clusters": n_cl, "cluster_unit": "scene"}
@@ -393,12 +386,11 @@ def stage_evaluate(ctx: Context) -> dict:
     mean_correct = {k: np.mean(v, axis=0) for k, v in correct.items()}
     comps = [compare(ctx, name, mean_correct[a], mean_correct[b], scn) for a, b, name in COMPARISONS
              if a in mean_correct and b in mean_correct]
-    np.savez_compressed(ctx.run_dir / ".predictions.npz.tmp.npz", labels=y, clip_ids=cid.astype(str),
-                        scene_ids=scn.astype(str),
-                        **{f"{k}__probs": p.probs for k, p in preds0.items()},
-                        **{f"{k}__vacuity": p.vacuity for k, p in preds0.items() if p.vacuity is not None},
-                        **{f"{k}__conflict": p.conflict for k, p in preds0.items() if p.conflict is not None})
-    os.replace(ctx.run_dir / ".predictions.npz.tmp.npz", ctx.run_dir / "predictions.npz")
+    with atomic_path(ctx.run_dir / "predictions.npz", suffix=".npz") as tmp:
+        np.savez_compressed(tmp, labels=y, clip_ids=cid.astype(str), scene_ids=scn.astype(str),
+                            **{f"{k}__probs": p.probs for k, p in preds0.items()},
+                            **{f"{k}__vacuity": p.vacuity for k, p in preds0.items() if p.vacuity is not None},
+                            **{f"{k}__conflict": p.conflict for k, p in preds0.items() if p.conflict is not None})
     temps = [{"run": k, **{f"T_{n}": v for n, v in m.temperatures.items()},
               **{f"bound_{n}": f for n, f in m.temperature_flags.items()}} for k, m in enumerate(ctx.models)]
     rf_drop = None
@@ -422,12 +414,9 @@ def stage_evaluate(ctx: Context) -> dict:
     return result
 
 
-_FORKED_CTX: dict = {}  # the context a forked evaluation worker inherits (never pickled)
-
-
 def _evaluate_group(group: tuple, extra: tuple) -> tuple[tuple, list]:
     """Every condition of the group's variants under its noise seeds and every training run (in a worker)."""
-    ctx = _FORKED_CTX["ctx"]
+    ctx = job_context()
     conds, y, cid, gate = extra
     cfg = ctx.cfg
     variants, seeds = group
@@ -454,13 +443,9 @@ def _map_groups(ctx: Context, groups: list, extra: tuple, label: str, job=None):
     """(group, result) of ``job(group, extra)`` (default _evaluate_group) for every group, through
     pipeline.forked_map on ``models.train_workers`` processes (each on models.torch_threads
     threads, inheriting the context; results do not depend on the count)."""
-    _FORKED_CTX["ctx"] = ctx
-    try:
-        for _, result in forked_map(job or _evaluate_group, [(g, extra) for g in groups], ctx.cfg.models.train_workers,
-                                    label if ctx.progress else None):
-            yield result
-    finally:
-        _FORKED_CTX.clear()
+    for _, result in forked_map(job or _evaluate_group, [(g, extra) for g in groups], ctx.cfg.models.train_workers,
+                                label if ctx.progress else None, context=ctx):
+        yield result
 
 
 def warm_clean(ctx: Context) -> None:
@@ -486,14 +471,14 @@ def _noisy_unimodal(ctx: Context, modality: str, y: np.ndarray) -> float | None:
     return float(np.mean(vals)) if vals else None
 
 
-SWEEP_RULES = ("late", "gmu", "average", "ds", "yager", "discounted")
+FUSION_RULES = ("late", "gmu", "average", "ds", "yager", "discounted")  # the rules the sweep and conflict study compare
 
 
 def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
     """The sweep rows of one (modality, severity) over every noise seed and training run (in a worker)."""
     from evids.experiments.config import NoiseEntry
 
-    ctx = _FORKED_CTX["ctx"]
+    ctx = job_context()
     cfg, sc = ctx.cfg, ctx.cfg.sweep
     (seeds,) = extra
     modality, sev = job
@@ -508,8 +493,9 @@ def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
     for seed, run in [(s_, r_) for s_ in seeds for r_ in ctx.runs]:
         out = ctx.outputs("clean", 0, run=run) if sev == 0 else ctx.outputs(
             "sweep", seed, run=run, **{stream: [NoiseEntry(name=name, severity=sev)]})
-        for rule in (*SWEEP_RULES, "unimodal_sigmoid", "unimodal_edl"):
-            cond = Condition(rule, rule, "sweep", {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}.get(rule, rule),
+        for rule in (*FUSION_RULES, "unimodal_sigmoid", "unimodal_edl"):
+            cond = Condition(rule, rule, "sweep",
+                             {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}.get(rule, rule),
                              modality if rule.startswith("unimodal") else None)
             pred = predict_condition(cond, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction,
                                      None)
@@ -537,9 +523,6 @@ def stage_sweep(ctx: Context) -> dict:
     return {"rows": rows}
 
 
-CONFLICT_RULES = ("late", "gmu", "average", "ds", "yager", "discounted")
-
-
 def _majority(alpha: np.ndarray) -> np.ndarray:
     votes = alpha.argmax(-1)                          # (3, N)
     return (votes.sum(0) >= 2).astype(np.int64)       # class 1 when >= 2 of 3 vote Background
@@ -549,7 +532,7 @@ def _rule_preds(ctx: Context, run: int, out: Outputs, cid: np.ndarray) -> dict[s
     cfg = ctx.cfg
     preds = {rule: predict_condition(Condition(rule, rule, "conflict", rule), ctx.models[run], out, cid,
                                      cfg.fusion.c_max, cfg.fusion.construction, None).probs.argmax(1)
-             for rule in CONFLICT_RULES}
+             for rule in FUSION_RULES}
     preds["majority_vote"] = _majority(out.alpha)
     return preds
 
@@ -674,7 +657,7 @@ def stage_conflict(ctx: Context) -> dict:
 
 def _conflict_job(k: int, extra: tuple) -> tuple[int, dict]:
     """The realised effect of program ``k`` (in a worker)."""
-    ctx = _FORKED_CTX["ctx"]
+    ctx = job_context()
     (progs,) = extra
     torch.set_num_threads(ctx.cfg.models.torch_threads)
     return k, _swap_program(ctx, progs[k])

@@ -28,7 +28,8 @@ def _degradation_problems(path: str, name: str, severity: float | None, params: 
     cls = degradations.REGISTRY.get(name)
     if cls is None:
         near = sorted(k for k in degradations.REGISTRY if k.split(".")[0] == str(name).split(".")[0])
-        return [f"{name_path}: unknown degradation {str(name)[:60]!r}; known: {', '.join(near) or '(see docs/DEGRADATIONS.md)'}"]
+        return [f"{name_path}: unknown degradation {str(name)[:60]!r}; known: "
+                f"{', '.join(near) or '(see docs/DEGRADATIONS.md)'}"]
     problems = []
     if cls.modality not in modalities:
         problems.append(f"{name_path}: {name} acts on {cls.modality!r}, not on {' or '.join(modalities)}")
@@ -76,7 +77,8 @@ def experiment_problems(cfg) -> list[str]:
         if v < 1:
             problems.append(f"gate.n[{k}]: the hysteresis count must be >= 1, got {v!r}")
     if gate.tau_low and gate.tau_high and min(gate.tau_low) >= max(gate.tau_high):
-        problems.append(f"gate: every tau_low {gate.tau_low} is >= every tau_high {gate.tau_high}; no gate point is valid")
+        problems.append(f"gate: every tau_low {gate.tau_low} is >= every tau_high {gate.tau_high}; no gate point is "
+                        "valid")
     return problems
 
 

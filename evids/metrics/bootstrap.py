@@ -96,7 +96,7 @@ def clustered_bootstrap(
     alpha = (1.0 - confidence) / 2.0
     if finite.size:
         lo, hi = np.quantile(finite, [alpha, 1.0 - alpha])
-        p = min(1.0, 2.0 * min(np.mean(finite <= 0.0), np.mean(finite >= 0.0)))
+        p = min(1.0, 2.0 * float(min(np.mean(finite <= 0.0), np.mean(finite >= 0.0))))
     else:
         lo = hi = p = float("nan")
     return BootstrapResult(estimate, float(lo), float(hi), float(p), samples, confidence, int(labels.size))

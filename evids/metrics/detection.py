@@ -186,7 +186,8 @@ def state_accuracy(
         raise ValueError(f"variant must be 'plain' or 'penalised', got {variant!r}")
     if not (len(pred_boxes) == len(gt_boxes) == len(exist)):
         raise ValueError(
-            f"pred_boxes, gt_boxes and exist must have equal length, got {len(pred_boxes)}, {len(gt_boxes)}, {len(exist)}"
+            f"pred_boxes, gt_boxes and exist must have equal length, got {len(pred_boxes)}, {len(gt_boxes)}, "
+            f"{len(exist)}"
         )
     if len(exist) == 0:
         raise ValueError("state_accuracy needs at least one frame")

@@ -101,7 +101,7 @@ def null_rejection_rate(n_clusters: int, n_simulations: int, rng: np.random.Gene
     rejections = 0
     for _ in range(n_simulations):
         rows = []
-        for sysname in range(2):
+        for _system in range(2):
             base = rng.random(n_clusters) < accuracy
             copy = rng.random((n_clusters, segments_per_cluster)) < icc
             own = rng.random((n_clusters, segments_per_cluster)) < accuracy
@@ -128,10 +128,10 @@ def comparison_verdict(effect: float | None, ci_low: float | None, ci_high: floa
     - "no difference" only when the CI lies inside [-MDE, +MDE];
     - "undecided" otherwise, and whenever a number is missing or not finite.
     """
-    values = (effect, ci_low, ci_high, mde)
-    if any(v is None for v in values) or not all(np.isfinite(float(v)) for v in values):
+    numbers = [float(v) for v in (effect, ci_low, ci_high, mde) if v is not None]
+    if len(numbers) < 4 or not all(np.isfinite(v) for v in numbers):
         return UNDECIDED
-    effect, ci_low, ci_high, mde = (float(v) for v in values)
+    effect, ci_low, ci_high, mde = numbers
     if (ci_low > 0 or ci_high < 0) and abs(effect) >= mde:
         return A_BEATS_B if effect > 0 else B_BEATS_A
     if -mde <= ci_low and ci_high <= mde:

@@ -142,8 +142,10 @@ class FeatureFusionDetector(nn.Module):
         self.rgb = Backbone(3, width)
         self.thermal = Backbone(1, width)
         self.attention = nn.Sequential(nn.AdaptiveAvgPool2d(1), nn.Conv2d(2 * width, 2 * width // reduction, 1),
-                                       nn.ReLU(inplace=True), nn.Conv2d(2 * width // reduction, 2 * width, 1), nn.Sigmoid())
-        self.project = nn.Sequential(nn.Conv2d(2 * width, width, 1, bias=False), nn.BatchNorm2d(width), nn.ReLU(inplace=True))
+                                       nn.ReLU(inplace=True), nn.Conv2d(2 * width // reduction, 2 * width, 1),
+                                       nn.Sigmoid())
+        self.project = nn.Sequential(nn.Conv2d(2 * width, width, 1, bias=False), nn.BatchNorm2d(width),
+                                     nn.ReLU(inplace=True))
         self.heads = _Heads(width, "sigmoid")
         self.head: HeadKind = "sigmoid"
 

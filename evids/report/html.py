@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from evids.metrics.significance import comparison_verdict, separating_digits, verdict_sentence
+from simulator.files import atomic_path
 
 MODALITIES = ("audio", "video", "rf")
 
@@ -34,7 +35,8 @@ def _png(fig) -> str:
 
 
 def _img(b64: str, alt: str) -> str:
-    return f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{b64}"><figcaption>{html.escape(alt)}</figcaption></figure>'
+    return (f'<figure><img alt="{html.escape(alt)}" '
+            f'src="data:image/png;base64,{b64}"><figcaption>{html.escape(alt)}</figcaption></figure>')
 
 
 def _fmt(v: Any, std: Any = None, pct: bool = False) -> str:
@@ -76,10 +78,8 @@ def example_figure(clips, idx: list[int], degraded: dict[str, list], path: Path)
             ax.set_yticks([])
             ax.set_title(f"{title}" + (f"\n{clip.clip_id} seg {s}" if c == 0 else ""), fontsize=7)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, format="png", dpi=80)
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=80)
 
 
 def _cond(ev: dict, key: str) -> dict | None:
@@ -98,7 +98,8 @@ def _verdict(x: dict | None, a: str, b: str) -> str:
 def _stat(x: dict | None) -> str:
     if not x or x.get("delta_accuracy") is None:
         return "(no test available)"
-    return (f"&Delta; = {100 * x['delta_accuracy']:+.2f} pp, 95% CI [{100 * x['ci_low']:+.2f}, {100 * x['ci_high']:+.2f}] pp, "
+    return (f"&Delta; = {100 * x['delta_accuracy']:+.2f} pp, 95% CI [{100 * x['ci_low']:+.2f}, "
+            f"{100 * x['ci_high']:+.2f}] pp, "
             f"permutation p = {x['p_permutation']:.3f}, MDE(80%) = {100 * x['mde']:.2f} pp, {x['n_clusters']} scenes")
 
 
@@ -126,7 +127,8 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | N
         if bc:
             n2 = "EDL + average (d) vs clean-fitted Late Fusion (control)"
             out.append(f"<b>Control, Late Fusion fitted on clean train outputs:</b> {100 * bc['accuracy']:.2f}%; "
-                       f"{_verdict(comps.get(n2), 'EDL + average', 'clean-fitted Late Fusion')}; {_stat(comps.get(n2))}.")
+                       f"{_verdict(comps.get(n2), 'EDL + average', 'clean-fitted Late Fusion')}; "
+                       f"{_stat(comps.get(n2))}.")
     pairs = [(m, _cond(ev, f"a_{m}"), _cond(ev, f"a_edl_{m}")) for m in MODALITIES]
     obj = [f"{m}: {100 * ed['accuracy']:.1f}% EDL vs {100 * sg['accuracy']:.1f}% sigmoid, "
            f"{_verdict(comps.get(f'objective: EDL vs sigmoid head, {m}'), 'EDL', 'sigmoid')} "
@@ -136,11 +138,13 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | N
     if d and e:
         name = "DS (e) vs average (d), standard noise"
         out.append(f"<b>DS vs averaging, no controlled conflict:</b> DS {100 * e['accuracy']:.2f}% vs average "
-                   f"{100 * d['accuracy']:.2f}%: {_verdict(comps.get(name), 'DS', 'averaging')}; {_stat(comps.get(name))}.")
+                   f"{100 * d['accuracy']:.2f}%: {_verdict(comps.get(name), 'DS', 'averaging')}; "
+                   f"{_stat(comps.get(name))}.")
     g, dp = _cond(ev, "g"), _cond(ev, "d_prime")
     if g and dp:
         name = "DS (g) vs average (d'), all modalities noisy"
-        out.append(f"<b>All modalities noisy:</b> DS {100 * g['accuracy']:.2f}% vs average {100 * dp['accuracy']:.2f}%: "
+        out.append(f"<b>All modalities noisy:</b> DS {100 * g['accuracy']:.2f}% vs average "
+                   f"{100 * dp['accuracy']:.2f}%: "
                    f"{_verdict(comps.get(name), 'DS', 'averaging')}; {_stat(comps.get(name))}.")
     rf = ev.get("rf_noise_effect")
     if rf and rf.get("drop") is not None:
@@ -159,7 +163,8 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | N
             s += (f"DS and averaging decide differently under {len(differ)} programs; most under {top['program']} "
                   f"({100 * top['ds_average_disagree_rate']:.1f}% of its targeted segments; there DS is right on "
                   f"{_fmt(top['ds_average_disagree_accuracy'].get('ds'), pct=True)}% and averaging on "
-                  f"{_fmt(top['ds_average_disagree_accuracy'].get('average'), pct=True)}%). On {top['program']}'s targeted "
+                  f"{_fmt(top['ds_average_disagree_accuracy'].get('average'), pct=True)}%). On {top['program']}'s "
+                  "targeted "
                   f"segments: DS {_fmt(top['accuracy'].get('ds'), pct=True)}% vs average "
                   f"{_fmt(top['accuracy'].get('average'), pct=True)}%: {_verdict(dc, 'DS', 'averaging')}; {_stat(dc)}.")
         else:
@@ -185,7 +190,8 @@ def _pct_vs_chance(v: float | None) -> str:
 
 
 def _audit_html(audit: dict) -> str:
-    rows = [[r.get("variant", "observed"), r["feature"], r["model"], f"{r['n_train'][0]}/{r['n_train'][1]}", f"{r['n_test'][0]}/{r['n_test'][1]}",
+    rows = [[r.get("variant", "observed"), r["feature"], r["model"], f"{r['n_train'][0]}/{r['n_train'][1]}",
+             f"{r['n_test'][0]}/{r['n_test'][1]}",
              _fmt(r.get("n_test_scenes")), _fmt(r.get("score"), pct=True), _pct_vs_chance(r.get("ci_low")),
              _pct_vs_chance(r.get("ci_high")), html.escape(r["status"])] for r in audit["baselines"]]
     verdict = ("<b style='color:#b00'>SHORTCUT FOUND</b>: a target-blind baseline beats chance; the class is "
@@ -196,10 +202,12 @@ def _audit_html(audit: dict) -> str:
             "scored on test; balanced accuracy (chance 50%), 95% CI by resampling test scenes. Features describe the "
             "scene, not the drone: median frame colour, colour of the target-free top/bottom strips, mean MFCC and "
             "mean RF spectrum on segments where the simulator says that sensor does not observe the drone. "
-            "n = drone/background segments. Where twins exist the <i>twin_counterfactual</i> rows decide (a drone clip's "
+            "n = drone/background segments. Where twins exist the <i>twin_counterfactual</i> rows decide (a drone "
+            "clip's "
             "features taken from its drone-absent twin: only a difference other than the drone can be learned); "
             "<i>observed</i> rows above chance there show drone signal in the feature, not a shortcut.</p>" + _table(
-                ["variant", "feature", "model", "n train", "n test", "test scenes", "balanced acc %", "CI low", "CI high",
+                ["variant", "feature", "model", "n train", "n test", "test scenes", "balanced acc %", "CI low",
+                 "CI high",
                  "status"], rows, "audit"))
 
 
@@ -219,7 +227,8 @@ def _observability_html(ev: dict) -> str:
     ax.set_ylabel("fraction of drone segments")
     ax.legend(fontsize=7)
     rows = [[s, _fmt(o["n_clips"]), _fmt(o["n_drone_clips"]), _fmt(o.get("px_median")),
-             *[_fmt(o["observed_fraction"].get(m), pct=True) for m in ("video", "audio", "rf")]] for s, o in obs.items()]
+             *[_fmt(o["observed_fraction"].get(m), pct=True) for m in ("video", "audio", "rf")]]
+             for s, o in obs.items()]
     vb = ev.get("video_by_size") or {}
     size_rows = [[f"{b['px_low']:g}-{b['px_high']:g}", _fmt(b["n"]), _fmt(b["accuracy"], pct=True)]
                  for b in vb.get("bins", []) if b["n"]]
@@ -228,7 +237,8 @@ def _observability_html(ev: dict) -> str:
                       "RF observes %"], rows, "observability")
             + "<h3>Video accuracy by drone size (EDL video model, clean test, mean over training runs)</h3>"
             + _table(["drone px", "segments", "accuracy %"], size_rows, "bysize")
-            + f"<p class='note'>Background test segments: {_fmt(vb.get('background_accuracy'), pct=True)}% correct.</p>")
+            + f"<p class='note'>Background test segments: {_fmt(vb.get('background_accuracy'), pct=True)}% "
+              "correct.</p>")
 
 
 def _comparisons_html(comps: list[dict]) -> str:
@@ -268,7 +278,8 @@ def _conflict_html(conf: dict) -> str:
             where.append([html.escape(p["program"]), html.escape(w["clip"]), _fmt(w["segment"]),
                           ["Drone", "Background"][w["label"]], ["Drone", "Background"][w["ds"]],
                           ["Drone", "Background"][w["average"]],
-                          html.escape("; ".join(f"{m} ({a[0]:.1f}, {a[1]:.1f})" for m, a in zip(MODALITIES, w["alpha"])))])
+                          html.escape("; ".join(f"{m} ({a[0]:.1f}, {a[1]:.1f})"
+                                                for m, a in zip(MODALITIES, w["alpha"])))])
     fig = _fig(6.0, 3.2)
     ax = fig.add_subplot(1, 1, 1)
     for p in conf["programs"]:
@@ -286,17 +297,20 @@ def _conflict_html(conf: dict) -> str:
     return ("<h2>Conflict study: realised effect per program</h2><p class='note'>Twin-swap programs: inside the "
             "middle half of each test clip the compromised sensor's stream moves to the scene's counterfactual twin "
             "(blind: a drone clip's sensor loses the drone; decoy: a background clip's sensor gains a drone's "
-            "signature; strength &lt; 1 = weakly wrong). Targeted = segments where the drone clip's sensor observes the "
+            "signature; strength &lt; 1 = weakly wrong). Targeted = segments where the drone clip's sensor observes "
+            "the "
             "drone (truth). Vote flips: share of targeted segments where the compromised sensor's EDL vote changes "
             "vs the same clip without the program, mean &plusmn; std over training runs; P(wrong): its mean "
             "probability of the wrong class there. Rule accuracies are on the targeted segments. 'bites' = flips "
             "&ge; 50%; 'inert' = flips &lt; 5%.</p>" + _table(hdr, rows, "conflict")
             + _img(_png(fig), "DS conflict C per program")
             + ("<h3>Where DS and averaging decide differently (first training run)</h3>"
-               + _table(["program", "clip", "segment", "truth", "DS", "average", "alpha (Drone, Background) per sensor"],
+               + _table(["program", "clip", "segment", "truth", "DS", "average",
+                         "alpha (Drone, Background) per sensor"],
                         where, "where") if where else "<p>DS and averaging never decided differently.</p>")
             + (("<h3>Older degradation-based programs</h3>" + _table(
-                ["program", "modality", "compromised segs", "vote flips %", "status"], legacy, "legacy")) if legacy else ""))
+                ["program", "modality", "compromised segs", "vote flips %", "status"], legacy, "legacy")) if legacy
+                else ""))
 
 
 def _temperature_html(ev: dict) -> str:
@@ -304,7 +318,8 @@ def _temperature_html(ev: dict) -> str:
     if not temps:
         return ""
     names = [k[2:] for k in temps[0] if k.startswith("T_")]
-    rows = [[str(t["run"]), *[_fmt(t[f"T_{n}"]) + (f" <b>(at {t[f'bound_{n}']} bound)</b>" if t.get(f"bound_{n}") else "")
+    rows = [[str(t["run"]),
+             *[_fmt(t[f"T_{n}"]) + (f" <b>(at {t[f'bound_{n}']} bound)</b>" if t.get(f"bound_{n}") else "")
                               for n in names]] for t in temps]
     return ("<h3>Temperatures (fitted on validation outputs under the test noise protocol)</h3>"
             + _table(["training run", *names], rows, "temps")
@@ -365,25 +380,10 @@ def _gate_fig(gate: dict) -> str:
     return _png(fig)
 
 
-def _conflict_fig(conf: dict) -> str:
-    c = conf["conflict_C"]
-    edges = np.asarray(c["edges"])
-    fig = _fig(5.5, 3.5)
-    ax = fig.add_subplot(1, 1, 1)
-    for k, col in (("agreeing", "tab:blue"), ("conflicting", "tab:red")):
-        h = np.asarray(c[k], float)
-        ax.stairs(h / max(h.sum(), 1), edges, label=f"{k} (n={int(h.sum())})", color=col)
-    ax.axvline(c["c_max"], color="k", ls=":", label="C_max (fallback)")
-    ax.set_xlabel("DS conflict C (largest fold step)")
-    ax.set_ylabel("fraction of segments")
-    ax.legend(fontsize=7)
-    return _png(fig)
-
-
 CSS = """body{font-family:sans-serif;max-width:1200px;margin:1em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:.6em 0;font-size:13px}th,td{border:1px solid #bbb;padding:3px 6px;text-align:right}
 th{background:#eee}td:first-child,th:first-child{text-align:left}figure{margin:.5em 0}img{max-width:100%}
-figcaption{font-size:12px;color:#555}.note{color:#555;font-size:13px}li{margin:.3em 0}"""
+figcaption{font-size:12px;color:#555}.note{color:#555;font-size:13px}li{margin:.3em 0}"""  # noqa: E501 (CSS)
 
 
 def build_report(run_dir: str | Path) -> Path:
@@ -410,7 +410,8 @@ def build_report(run_dir: str | Path) -> Path:
              "validation).</p>"]
     if audit:
         parts.append(_audit_html(audit))
-    parts.append("<h2>Answers</h2><ul>" + "".join(f"<li>{h}</li>" for h in headline(ev, conflict, gate, audit)) + "</ul>")
+    parts.append("<h2>Answers</h2><ul>" + "".join(f"<li>{h}</li>"
+                                                  for h in headline(ev, conflict, gate, audit)) + "</ul>")
     parts.append(_observability_html(ev))
     hdr = ["condition", "inputs", "accuracy %", "macro-F1", "ECE", "NLL", "Brier", "UAUC entropy", "UAUC vacuity",
            "mean C", "fallback", "skip"]
@@ -452,7 +453,8 @@ def build_report(run_dir: str | Path) -> Path:
         trow = [["ungated", _fmt(t["ungated"]["total_s"]), *[_fmt(v) for v in t["ungated"]["encoder_runs"]]],
                 ["gated (f)", _fmt(t["gated"]["total_s"]), *[_fmt(v) for v in t["gated"]["encoder_runs"]]]]
         parts.append(_table(["stream", "wall s", "audio runs", "video runs", "rf runs"], trow, "timing") +
-                     f"<p>Encoder ms per segment (audio, video, rf): {', '.join(f'{v:.2f}' for v in t['encoder_ms_per_segment'])}. "
+                     "<p>Encoder ms per segment (audio, video, rf): "
+                     f"{', '.join(f'{v:.2f}' for v in t['encoder_ms_per_segment'])}. "
                      f"Realised saving {100 * t['realised_saving_fraction']:.1f}%, projected "
                      f"{100 * t['projected_saving_fraction']:.1f}% ({t['torch_threads']} torch threads).</p>")
     ex = run_dir / "figures" / "examples.png"
@@ -463,7 +465,8 @@ def build_report(run_dir: str | Path) -> Path:
         parts.append("<h2>Detection experiment</h2><p><a href='detection/detection.html'>RGB/thermal detection, fusion "
                      "and tracking (the paper's E1/E3 on generated video)</a></p>")
     stages = run.get("stages", {})
-    parts.append("<h2>Run</h2>" + _table(["stage", "seconds"], [[k, _fmt(float(v["seconds"]))] for k, v in stages.items() if k != "complete"])
+    parts.append("<h2>Run</h2>" + _table(["stage", "seconds"],
+                                         [[k, _fmt(float(v["seconds"]))] for k, v in stages.items() if k != "complete"])
                  + "<details><summary>hyper-parameters and training record</summary><pre>"
                  + html.escape(json.dumps({"hyper_parameters": train["hyper_parameters"],
                                            "training": train["training"], "gate_condition_f": ev["gate_condition_f"],

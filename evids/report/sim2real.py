@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import base64
 import html
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -13,7 +12,8 @@ from typing import Any
 from evids.report.html import CSS, _table
 
 STAT_LABELS = {
-    "box_w_px": "box width (px)", "box_h_px": "box height (px)", "contrast": "target contrast |box - ring| (grey levels)",
+    "box_w_px": "box width (px)", "box_h_px": "box height (px)",
+    "contrast": "target contrast |box - ring| (grey levels)",
     "peak": "target peak |box - ring median|", "background": "background level (median grey)",
     "row_gradient": "row gradient (bottom - top quarter)", "spatial_noise": "spatial noise (robust std)",
     "temporal_noise": "temporal noise (robust std / sqrt 2)", "absent_fraction": "target-absent fraction (per clip)",
@@ -49,15 +49,18 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
     c = res["classifier"]
     n = res["n_clips"]
     parts = [f"<h3>{'IR (thermal)' if sensor == 'ir' else 'Visible'}</h3>",
-             f"<p class='note'>Clips: {n['real_calibration']} real calibration, {n['real_evaluation']} real evaluation, "
+             f"<p class='note'>Clips: {n['real_calibration']} real calibration, {n['real_evaluation']} real "
+             "evaluation, "
              f"{n['synthetic']} synthetic sequences. Crop classifier ({', '.join(res['classes'])}; chance "
              f"{1 / len(res['classes']):.2f}) evaluated on {c['n_test_crops']} crops of the {c['n_test_clips']} "
              "evaluation clips; mean over training seeds, 95 % clip-bootstrap interval.</p>"]
     rows = [[html.escape(v.get("label", k)), _ci(v), ", ".join(f"{x:.3f}" for x in v["per_seed"]),
              str(c["train_sizes"].get(k, "")), str(c["train_clips"].get(k, ""))] for k, v in c["conditions"].items()]
-    parts.append(_table(["condition", "balanced accuracy [95 % CI]", "per seed", "training crops", "training clips"], rows))
+    parts.append(_table(["condition", "balanced accuracy [95 % CI]", "per seed", "training crops", "training clips"],
+                        rows))
     rows = [[label, _ci(c.get(key), signed=key != "ratio_b_over_a")] for key, label in
-            (("ratio_b_over_a", "ratio (b) / (a)"), ("gain_c_minus_a", "(c) - (a)"), ("gain_dplus_minus_d", "(d+) - (d)"))]
+            (("ratio_b_over_a", "ratio (b) / (a)"), ("gain_c_minus_a", "(c) - (a)"),
+             ("gain_dplus_minus_d", "(d+) - (d)"))]
     parts.append(_table(["comparison", "estimate [95 % CI] (MDE: smallest difference this test detects)"], rows))
     det = res.get("detector", {})
     if det.get("conditions"):
@@ -65,20 +68,25 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
                  ", ".join(f"{x:.3f}" for x in v.get("per_seed", [])), str(v.get("train_clips", ""))]
                 for k, v in det["conditions"].items()]
         ratio = det.get("ratio_synthetic_over_real")
-        parts.append(_table(["E1/E3 detector (sigmoid head)", "AP50 on the real evaluation half (pycocotools)", "per seed",
+        parts.append(_table(["E1/E3 detector (sigmoid head)", "AP50 on the real evaluation half (pycocotools)",
+                             "per seed",
                              "training clips"], rows)
                      + f"<p class='note'>{det['n_test_frames']} evaluation frames of {det['n_test_clips']} clips, "
-                     f"{det['n_test_boxes']} boxes (all classes are 'target').{f' Ratio synthetic / real: {ratio:.3f}.' if ratio else ''}</p>")
+                     f"{det['n_test_boxes']} boxes (all classes are "
+                     f"'target').{f' Ratio synthetic / real: {ratio:.3f}.' if ratio else ''}</p>")
     d = res["domain_classifier"]
-    parts.append(_table(["domain classifier (real calibration half vs synthetic, split by clip)", "held-out balanced accuracy"],
-                        [[f"{k}s", f"{v['accuracy']:.3f}" if v.get("accuracy") is not None else "&ndash;"] for k, v in d.items()])
+    parts.append(_table(["domain classifier (real calibration half vs synthetic, split by clip)",
+                         "held-out balanced accuracy"],
+                        [[f"{k}s", f"{v['accuracy']:.3f}" if v.get("accuracy") is not None else "&ndash;"]
+                         for k, v in d.items()])
                  + "<p class='note'>0.5 = the classifier cannot tell real from synthetic.</p>")
     rows = []
     for cls, stats in res["statistics"].items():
         for stat, row in stats.items():
             inside = row["inside"]
             mark = "&ndash;" if inside is None else ("yes" if inside else "<b>no</b>")
-            rows.append([f"{cls}", STAT_LABELS.get(stat, stat), _iqr(row["real_evaluation"]), _iqr(row["real_calibration"]),
+            rows.append([f"{cls}", STAT_LABELS.get(stat, stat), _iqr(row["real_evaluation"]),
+                         _iqr(row["real_calibration"]),
                          _iqr(row["synthetic"]), mark])
     parts.append("<details open><summary>Per-class statistics: median [IQR]</summary>" +
                  _table(["class", "statistic", "real, evaluation half", "real, calibration half", "synthetic",
@@ -86,7 +94,8 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
     files = res.get("sheets", {})
     for kind, caption in (("crops", "target crops"), ("backgrounds", "background patches"), ("frames", "whole frames")):
         if kind in files:
-            parts.append(_sheet(run_dir, files[kind], f"{sensor}: {caption}, real (calibration half) vs synthetic, per class"))
+            parts.append(_sheet(run_dir, files[kind],
+                                f"{sensor}: {caption}, real (calibration half) vs synthetic, per class"))
     return "\n".join(parts)
 
 
@@ -106,21 +115,27 @@ def _audio(run_dir: Path, res: dict[str, Any]) -> str:
             rows.append([html.escape(v.get("description", cond)), f"{v['roc_auc']:.3f} [{ci[0]:.3f}, {ci[1]:.3f}]",
                          f"{v['balanced_accuracy']:.3f} [{bci[0]:.3f}, {bci[1]:.3f}]",
                          "&ndash;" if heli is None else f"{100 * heli:.0f} %"])
-        parts.append(_table([f"{model}: condition", "ROC-AUC [95 % CI]", "balanced accuracy", "helicopter windows called drone"], rows))
+        parts.append(_table([f"{model}: condition", "ROC-AUC [95 % CI]", "balanced accuracy",
+                             "helicopter windows called drone"], rows))
         comp = []
-        for key, label in (("ratio_synthetic_over_real_auc", "ratio (b)/(a) AUC"), ("synthetic_plus_real_gain_auc", "(c) - (a) AUC"),
+        for key, label in (("ratio_synthetic_over_real_auc", "ratio (b)/(a) AUC"),
+                           ("synthetic_plus_real_gain_auc", "(c) - (a) AUC"),
                            ("few_shot_gain_auc", "(d+) - (d) AUC")):
             if key not in r:
                 continue
-            ci = r.get({"ratio_synthetic_over_real_auc": "ratio_ci95", "synthetic_plus_real_gain_auc": "synthetic_plus_real_gain_ci95",
+            ci = r.get({"ratio_synthetic_over_real_auc": "ratio_ci95",
+                        "synthetic_plus_real_gain_auc": "synthetic_plus_real_gain_ci95",
                         "few_shot_gain_auc": "few_shot_gain_ci95"}[key], [float("nan")] * 2)
             mde = r.get(key.replace("_auc", "_mde"))
-            comp.append([label, f"{r[key]:+.3f} [{ci[0]:+.3f}, {ci[1]:+.3f}]" + (f" (MDE {mde:.3f})" if mde is not None else "")])
+            comp.append([label, f"{r[key]:+.3f} [{ci[0]:+.3f}, {ci[1]:+.3f}]"
+                         + (f" (MDE {mde:.3f})" if mde is not None else "")])
         parts.append(_table(["comparison", "estimate [95 % CI]"], comp))
     inside = res.get("statistics_inside_real_iqr", {})
     if inside:
-        parts.append("<p class='note'>Spectral statistics with the synthetic median inside the real evaluation half's IQR: "
-                     + ", ".join(f"{k} {v['inside']} of {v['of']}" for k, v in inside.items()) + " (all values in sim2real.json).</p>")
+        parts.append("<p class='note'>Spectral statistics with the synthetic median inside the real evaluation half's "
+                     "IQR: "
+                     + ", ".join(f"{k} {v['inside']} of {v['of']}" for k, v in inside.items())
+                     + " (all values in sim2real.json).</p>")
     fig = res.get("figure")
     if fig:
         parts.append(_sheet(run_dir, Path(fig).name, "spectrograms, real (calibration half) | synthetic per class"))
@@ -144,7 +159,8 @@ def write_page(run_dir: Path, summary: dict[str, Any]) -> Path:
 
     doc = ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>evids sim2real</title>"
            f"<style>{CSS}</style></head><body><h1>evids sim-to-real report</h1><p class='note'>Built "
-           f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}{' (--quick: toy scale)' if summary.get('quick') else ''}."
+           f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}"
+           f"{' (--quick: toy scale)' if summary.get('quick') else ''}."
            f"</p>{section_html(run_dir, summary)}</body></html>")
     out = Path(run_dir) / "sim2real.html"
     write_atomic(out, doc)

@@ -14,12 +14,12 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M
 from scenes.loader import GENERATION_DIR
 from scenes.schema import Flyby, Hover, Orbit, Scenario, Target, Terrain, Waypoints
 from simulator.seeding import rng_for
 
 SPLITS = ("train", "val", "test")
-DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
 DISTRACTOR_KINDS = ("bird", "airliner", "helicopter")
 
 # sub-streams of the "generation" stream per sequence (never renumber: it would change datasets)
@@ -105,19 +105,23 @@ class Randomisation(_Model):
     camera_pitch_deg: Range | None = Field(default=None, description="thermal-to-RGB pitch offset")
     camera_translation_m: Range | None = Field(default=None, description="thermal-to-RGB baseline along x")
     distractors: tuple[Annotated[int, Field(ge=0, le=10)], Annotated[int, Field(ge=0, le=10)]] = (0, 0)
-    distractor_kinds: list[Literal["bird", "airliner", "helicopter"]] = Field(default_factory=lambda: ["bird"], min_length=1)
+    distractor_kinds: list[Literal["bird", "airliner", "helicopter"]] = Field(default_factory=lambda: ["bird"],
+                                                                              min_length=1)
     # scene realism (issue 23); every field left null keeps the draws and outputs of older configs
     distance_bins: list[DistanceBin] | None = Field(default=None, min_length=1,
-                                                    description="replaces range_m: a weighted mixture of distance ranges")
+                                                    description="replaces range_m: a weighted mixture of distance "
+                                                                "ranges")
     hfov_deg: Range | None = Field(default=None, description="fixed RGB field of view (replaces target_px)")
     elevation_fov_fraction: Range | None = Field(
-        default=None, description="replaces elevation_deg: the drone's elevation above the horizon as a fraction of the "
+        default=None,
+        description="replaces elevation_deg: the drone's elevation above the horizon as a fraction of the "
                                   "thermal camera's vertical field of view (0.35 puts the horizon 0.35 frame heights "
                                   "below a centred drone)")
     fixed_camera_fraction: float = Field(default=0.0, ge=0.0, le=1.0,
                                          description="share of sequences with a fixed camera (targets enter and leave)")
     fixed_camera_offset_deg: Range = Field(default_factory=lambda: Range(min=-8.0, max=8.0),
-                                           description="fixed camera: azimuth offset of the optical axis from the drone's centre")
+                                           description="fixed camera: azimuth offset of the optical axis from the "
+                                                       "drone's centre")
     camera_elevation_deg: Range | None = Field(default=None,
                                                description="fixed camera: optical-axis elevation (null: the drone's)")
     tracking_lag_s: Range | None = None
@@ -139,7 +143,8 @@ class Randomisation(_Model):
             if value is not None and value.min <= 0:
                 raise ValueError(f"{name} must be > 0, got [{value.min}, {value.max}]")
         if self.time_of_day_h is not None and (self.time_of_day_h.min < 0 or self.time_of_day_h.max > 24):
-            raise ValueError(f"time_of_day_h must lie in [0, 24], got [{self.time_of_day_h.min}, {self.time_of_day_h.max}]")
+            raise ValueError(f"time_of_day_h must lie in [0, 24], got [{self.time_of_day_h.min}, "
+                             f"{self.time_of_day_h.max}]")
         if self.relative_humidity is not None and (self.relative_humidity.min < 0 or self.relative_humidity.max > 1):
             raise ValueError("relative_humidity must lie in [0, 1]")
         if self.sun_elevation_deg is not None and (self.sun_elevation_deg.min < -90 or self.sun_elevation_deg.max > 90):
@@ -149,7 +154,8 @@ class Randomisation(_Model):
         for b in self.distance_bins or []:
             if b.range_m.min <= 0:
                 raise ValueError(f"distance_bins range_m must be > 0, got [{b.range_m.min}, {b.range_m.max}]")
-        for name in ("hfov_deg", "tracking_lag_s", "tracking_error_deg", "tracking_loss_rate_hz", "elevation_fov_fraction",
+        for name in ("hfov_deg", "tracking_lag_s", "tracking_error_deg", "tracking_loss_rate_hz",
+                     "elevation_fov_fraction",
                      "tracking_error_fov_fraction"):
             value = getattr(self, name)
             if value is not None and (value.min < 0 or (name == "hfov_deg" and not 0 < value.min <= value.max < 170)):
@@ -186,7 +192,8 @@ class GenerationConfig(_Model):
     frames: int = Field(default=25, ge=1, le=100_000, description="frames per sequence")
     frame_rate_hz: float | None = Field(default=None, gt=0.0, le=240.0, description="null keeps each scenario's")
     image_size: tuple[Annotated[int, Field(ge=16, le=4096)], Annotated[int, Field(ge=16, le=4096)]] = (320, 256)
-    thermal_image_size: tuple[Annotated[int, Field(ge=16, le=4096)], Annotated[int, Field(ge=16, le=4096)]] | None = None
+    thermal_image_size: tuple[Annotated[int, Field(ge=16, le=4096)],
+                              Annotated[int, Field(ge=16, le=4096)]] | None = None
     spp: int = Field(default=4, ge=1, le=1024)
     splits: Splits = Field(default_factory=Splits)
 
@@ -293,10 +300,12 @@ def _trajectory(kind: str, centre: np.ndarray, speed: float, duration_s: float, 
         climb = float(rng.uniform(-0.1, 0.1))
         velocity = speed * horiz + np.array([0.0, 0.0, climb * speed])
         start = centre - velocity * duration_s / 2
-        return Flyby(start_m=tuple(round(float(v), 3) for v in start), velocity_mps=tuple(round(float(v), 3) for v in velocity))
+        return Flyby(start_m=tuple(round(float(v), 3) for v in start),
+                     velocity_mps=tuple(round(float(v), 3) for v in velocity))
     if kind == "orbit":
         radius = float(rng.uniform(5.0, 25.0))
-        return Orbit(center_m=c, radius_m=round(radius, 3), speed_mps=round(speed, 3), clockwise=bool(rng.random() < 0.5),
+        return Orbit(center_m=c, radius_m=round(radius, 3), speed_mps=round(speed, 3),
+                     clockwise=bool(rng.random() < 0.5),
                      start_angle_deg=round(float(rng.uniform(0, 360)), 3))
     spread = max(2.0, speed * duration_s / 3)
     points = [tuple(round(float(v), 3) for v in centre + rng.uniform(-1, 1, 3) * np.array([spread, spread, spread / 4]))
@@ -304,7 +313,8 @@ def _trajectory(kind: str, centre: np.ndarray, speed: float, duration_s: float, 
     return Waypoints(points_m=points, speed_mps=round(speed, 3))
 
 
-def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_dir: Path | None = None) -> tuple[str, Scenario]:
+def randomised_scenario(config: GenerationConfig, seed: int, index: int,
+                        base_dir: Path | None = None) -> tuple[str, Scenario]:
     """(mixture source, scenario) of sequence ``index``: the chosen scenario with every configured
     range drawn, resized to the config's image size and frame count, named ``seq<index+1>``."""
     source = choose_source(config, seed, index)
@@ -326,7 +336,7 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_di
             targets[p]["thermal"]["offsets_k"] = {}
             targets[p]["thermal"]["offsets_end_k"] = None
             targets[p]["materials"] = {}
-            targets[p]["size_m"] = {"quadcopter": 0.45, "hexacopter": 0.9, "fixed_wing": 2.0}[new_kind]
+            targets[p]["size_m"] = DRONE_SIZE_M[new_kind]
     if r.target_size_scale is not None:
         lo, hi = r.target_size_scale.min, r.target_size_scale.max
         targets[p]["size_m"] = round(targets[p]["size_m"] * (lo + (hi - lo) * size_draw), 4)
@@ -428,7 +438,8 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_di
     off = rig["thermal_offset"]
     draws = rng.random(3)
     if r.camera_yaw_deg is not None:
-        off["yaw_deg"] = round(off["yaw_deg"] + r.camera_yaw_deg.min + (r.camera_yaw_deg.max - r.camera_yaw_deg.min) * draws[0], 5)
+        off["yaw_deg"] = round(off["yaw_deg"] + r.camera_yaw_deg.min + (r.camera_yaw_deg.max - r.camera_yaw_deg.min)
+                               * draws[0], 5)
     if r.camera_pitch_deg is not None:
         off["pitch_deg"] = round(off["pitch_deg"] + r.camera_pitch_deg.min
                                  + (r.camera_pitch_deg.max - r.camera_pitch_deg.min) * draws[1], 5)
@@ -466,7 +477,8 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int, base_di
             while name in names:
                 name += "_"
             names.add(name)
-            targets.append({"name": name, "kind": kind, "size_m": round(size, 3), "trajectory": traj.model_dump(mode="python"),
+            targets.append({"name": name, "kind": kind, "size_m": round(size, 3),
+                            "trajectory": traj.model_dump(mode="python"),
                             "wingbeat_hz": round(float(rng.uniform(2.5, 6.0)), 3) if kind == "bird" else 4.0})
             if kind == "helicopter":
                 targets[-1]["rotor"] = {"main_blades": 4, "main_rpm": 400.0}
@@ -505,7 +517,8 @@ def _camera_mode(r: Randomisation, rig: dict, target: dict, cam_pos: np.ndarray,
     drawn lag / error / losses. Draws a fixed number of values so each field keeps its stream."""
     u, off, el, lag, err, loss = rng.random(6)
     if u < r.fixed_camera_fraction:
-        az = bearing + r.fixed_camera_offset_deg.min + (r.fixed_camera_offset_deg.max - r.fixed_camera_offset_deg.min) * off
+        az = bearing + r.fixed_camera_offset_deg.min + (r.fixed_camera_offset_deg.max
+                                                        - r.fixed_camera_offset_deg.min) * off
         axis_el = elevation if r.camera_elevation_deg is None else \
             r.camera_elevation_deg.min + (r.camera_elevation_deg.max - r.camera_elevation_deg.min) * el
         rig["look_at_m"] = tuple(round(float(v), 4) for v in cam_pos + 100.0 * _direction(az, axis_el))

@@ -68,7 +68,8 @@ def _tiny_frames(scenario, seed: int, n_frames: int, width_px: int, height_px: i
     from simulator.dataset.sequence import render_rgb_video
 
     px = FIXTURE_SPEC["trident_render_px"]
-    small = render_rgb_video(scenario, seed, min(n_frames, FIXTURE_SPEC["trident_rendered_frames"]), px, px, layout=layout)
+    small = render_rgb_video(scenario, seed, min(n_frames, FIXTURE_SPEC["trident_rendered_frames"]), px, px,
+                             layout=layout)
     pick = (np.arange(n_frames) * len(small)) // n_frames
     return np.stack([cv2.resize(small[k], (width_px, height_px), interpolation=cv2.INTER_NEAREST) for k in pick])
 

@@ -20,7 +20,7 @@ import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Iterable
 
 from scenes.errors import UserInputError, short_repr
 from simulator.dataset.config import (
@@ -39,7 +39,9 @@ from simulator.files import (
     check_plain_name,
     inside,
     verify_hashes,
+    write_atomic,
 )
+from simulator.jobs import JobError, iter_jobs, threads_per_worker
 
 MANIFEST = "manifest.json"
 SEQUENCES_DIR = "sequences"
@@ -78,7 +80,8 @@ def plan_dataset(config: GenerationConfig, seed: int, base_dir: Path | None = No
     tasks = []
     for index in range(config.sequences):
         source, scenario = randomised_scenario(config, seed, index, base_dir)
-        tasks.append({"index": index, "name": sequence_name(index), "source": source, "seed": sequence_seed(seed, index),
+        tasks.append({"index": index, "name": sequence_name(index), "source": source,
+                      "seed": sequence_seed(seed, index),
                       "split": splits[index], "n_frames": config.frames, "scenario": scenario.model_dump(mode="json")})
     return tasks
 
@@ -113,9 +116,7 @@ def _manifest(config: GenerationConfig, seed: int, tasks: list[dict[str, Any]], 
 
 def write_manifest(out_dir: Path, manifest: dict[str, Any]) -> None:
     """Atomic: write a temporary file, then rename over manifest.json."""
-    tmp = out_dir / f".{MANIFEST}.tmp-{os.getpid()}"
-    tmp.write_text(json.dumps(manifest, sort_keys=True, indent=1, allow_nan=False) + "\n")
-    os.replace(tmp, out_dir / MANIFEST)
+    write_atomic(out_dir / MANIFEST, json.dumps(manifest, sort_keys=True, indent=1, allow_nan=False) + "\n")
 
 
 def load_manifest(dataset_dir: Path) -> dict[str, Any]:
@@ -146,7 +147,8 @@ def missing_planned_files(seq_dir: Path, n_frames: int) -> list[str]:
 
 
 def _sequence_ok(seq_dir: Path, task: dict[str, Any], recorded_hash: str | None) -> bool:
-    if not (seq_dir / "meta.json").is_file() or verify_hashes(seq_dir) or missing_planned_files(seq_dir, task["n_frames"]):
+    if (not (seq_dir / "meta.json").is_file() or verify_hashes(seq_dir)
+        or missing_planned_files(seq_dir, task["n_frames"])):
         return False
     try:
         meta = json.loads((seq_dir / "meta.json").read_text())
@@ -199,7 +201,8 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
         stages = PassTimes()
         wall0 = time.perf_counter()
         notes: list[str] = []
-        written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"], progress=False,
+        written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"],
+                                  progress=False,
                                   times=stages, overwrite=True, notes=notes, **writer)
         stages.seconds["setup + metadata (rest)"] = time.perf_counter() - wall0 - sum(stages.seconds.values())
         return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
@@ -220,118 +223,6 @@ def _peak_rss_mb() -> float:
     return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
 
 
-PR_SET_PDEATHSIG = 1
-
-
-def _die_with_driver(driver_pid: int) -> None:
-    """Pool worker initializer: the worker dies with its driver. On Linux the kernel sends SIGKILL
-    when the parent (the driver, or the forkserver, which exits when the driver does) dies
-    (prctl PR_SET_PDEATHSIG); everywhere a daemon thread also polls the driver's pid once a
-    second. So a kill -9 of the driver never leaves workers publishing sequences or holding memory."""
-    import signal
-    import threading
-
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
-    except (OSError, AttributeError):  # not Linux: the watchdog below still applies
-        pass
-
-    def driver_alive() -> bool:
-        try:
-            os.kill(driver_pid, 0)
-        except ProcessLookupError:
-            return False
-        except PermissionError:
-            return True
-        return True
-
-    if not driver_alive():  # the driver died before prctl took effect
-        os._exit(1)
-
-    def watchdog() -> None:
-        while driver_alive():
-            time.sleep(1.0)
-        os._exit(1)
-
-    threading.Thread(target=watchdog, name="evids-driver-watchdog", daemon=True).start()
-
-
-def _threads_per_worker(workers: int) -> int:
-    return max(1, (os.cpu_count() or 1) // max(1, workers))
-
-
-def _run_local(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int,
-               on_done: Callable[[dict[str, Any]], None], force_pool: bool = False) -> None:
-    if workers <= 1 and not force_pool:
-        for task in tasks:
-            on_done(render_task(task, str(sequences_dir)))
-        return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-    from concurrent.futures.process import BrokenProcessPool
-
-    method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
-    threads = 1 if force_pool else _threads_per_worker(workers)
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method), initializer=_die_with_driver,
-                               initargs=(os.getpid(),))
-    try:
-        futures = {pool.submit(render_task, t, str(sequences_dir), threads): t["name"] for t in tasks}
-        for future in as_completed(futures):
-            try:
-                on_done(future.result())
-            except BrokenProcessPool as exc:
-                on_done({"name": futures[future], "error": f"worker process died ({exc})"})
-    except BaseException:
-        # Ctrl-C: stop the workers now (their hidden temporaries are removed by the next run) and
-        # start none of the queued sequences
-        terminate_pool(pool)
-        raise
-    pool.shutdown(wait=True)
-
-
-def terminate_pool(pool) -> None:
-    """Stop a ProcessPoolExecutor's workers now and drop its queued jobs (no public terminate
-    before Python 3.14)."""
-    for proc in list((getattr(pool, "_processes", None) or {}).values()):
-        proc.terminate()
-    pool.shutdown(wait=False, cancel_futures=True)
-
-
-def _run_ray(tasks: list[dict[str, Any]], sequences_dir: Path, workers: int, address: str | None,
-             on_done: Callable[[dict[str, Any]], None]) -> None:
-    try:
-        import ray
-    except ImportError:
-        raise UserInputError("--executor ray needs Ray: pip install 'evids[ray]'") from None
-    started = False
-    if not ray.is_initialized():
-        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
-        if address:
-            kwargs["address"] = address
-        else:
-            kwargs["num_cpus"] = max(1, workers)
-        ray.init(**kwargs)
-        started = True
-    try:
-        remote = ray.remote(num_cpus=1, max_retries=0)(render_task)
-        threads = 1 if address else _threads_per_worker(workers)
-        pending = {remote.remote(t, str(sequences_dir), threads): t["name"] for t in tasks}
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            for ref in done:
-                name = pending.pop(ref)
-                try:
-                    on_done(ray.get(ref))
-                except Exception as exc:  # a crashed Ray worker fails only its own sequence
-                    on_done({"name": name, "error": f"Ray task failed: {type(exc).__name__}: {exc}"})
-    finally:
-        if started:
-            ray.shutdown()
-
-
 def run_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, *, workers: int = 1, executor: str = "local",
               ray_address: str | None = None, progress: bool = True, label: str = "generate",
               force_pool: bool = False) -> dict[str, dict[str, Any]]:
@@ -339,38 +230,22 @@ def run_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, *, workers: int 
 
     Local with one worker renders in-process (Dr.Jit uses every core); ``force_pool`` uses a
     one-process pool with 1 Dr.Jit thread per worker instead (for scaling benchmarks)."""
+    if executor not in EXECUTORS:
+        raise UserInputError(f"--executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
+    if executor == "ray":
+        start, threads = "ray", 1 if ray_address else threads_per_worker(workers)
+    elif workers <= 1 and not force_pool:
+        start, threads = "inline", None  # in-process: Dr.Jit uses every core
+    else:
+        start, threads = "forkserver", 1 if force_pool else threads_per_worker(workers)
+    calls = [(t, str(sequences_dir), threads) for t in tasks]
     results: dict[str, dict[str, Any]] = {}
-    bar = task_id = None
-    if progress and tasks:
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-            TimeRemainingColumn,
-        )
-
-        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TextColumn("elapsed"), TimeElapsedColumn(),
-                       TextColumn("eta"), TimeRemainingColumn())
-        task_id = bar.add_task("sequences", total=len(tasks))
-        bar.start()
-
-    def on_done(result: dict[str, Any]) -> None:
+    for i, result in iter_jobs(render_task, calls, workers=workers, start=start, on_error="collect",
+                               progress=label if progress else None, ray_address=ray_address):
+        if isinstance(result, JobError):  # render_task never raises: its worker died, or Ray failed
+            why = f"Ray task failed: {result.message}" if start == "ray" else f"worker process died ({result.error})"
+            result = {"name": tasks[i]["name"], "error": why}
         results[result["name"]] = result
-        if bar is not None:
-            bar.advance(task_id)
-
-    try:
-        if executor == "local":
-            _run_local(tasks, sequences_dir, workers, on_done, force_pool)
-        elif executor == "ray":
-            _run_ray(tasks, sequences_dir, workers, ray_address, on_done)
-        else:
-            raise UserInputError(f"--executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
-    finally:
-        if bar is not None:
-            bar.stop()
     return results
 
 
@@ -399,7 +274,8 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
     if bad:
         raise UserInputError(f"--format: unknown format(s) {bad}; valid: native, {', '.join(EXPORT_FORMATS)}")
     config = load_generation_config(config_or_name)
-    base_dir = Path(config_or_name).resolve().parent if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file() else None
+    base_dir = (Path(config_or_name).resolve().parent if isinstance(config_or_name, (str, Path))
+                and Path(config_or_name).is_file() else None)
     updates: dict[str, Any] = {}
     if sequences is not None:
         updates["sequences"] = sequences
@@ -413,9 +289,11 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
     identity = dataset_identity(config, seed, tasks)
 
     out = Path(out_dir)
-    config_file = [Path(config_or_name)] if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file() else []
+    config_file = ([Path(config_or_name)] if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file()
+                   else [])
     if out.is_dir() and not (out / LOCK_FILE).exists() and any(out.iterdir()) and not (out / MANIFEST).is_file():
-        raise UserInputError(f"output folder {str(out)!r} is not empty and holds no evids dataset; choose another --out")
+        raise UserInputError(f"output folder {str(out)!r} is not empty and holds no evids dataset; choose another "
+                             "--out")
     check_output(out, inputs=config_file, overwrite=overwrite, allow_resume=True)
     lock = DatasetLock(out, "generate").acquire()
     try:
@@ -451,7 +329,8 @@ def _generate_locked(out: Path, config: GenerationConfig, seed: int, tasks: list
                     shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
         else:
             entries = old.get("sequences", [])
-            recorded = {s["name"]: s["content_sha256"] for s in entries if isinstance(s, dict) and s.get("content_sha256")}
+            recorded = {s["name"]: s["content_sha256"] for s in entries if isinstance(s, dict)
+                        and s.get("content_sha256")}
     out.mkdir(parents=True, exist_ok=True)
     seq_root = out / SEQUENCES_DIR
     seq_root.mkdir(exist_ok=True)

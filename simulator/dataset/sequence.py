@@ -1,7 +1,6 @@
 """Render one scenario into the native layout (and optionally the Anti-UAV layout and a preview)."""
 from __future__ import annotations
 
-import json
 import shutil
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -170,7 +169,8 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                 TimeRemainingColumn,
             )
 
-            bar = Progress(TextColumn(f"render {scenario.name}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+            bar = Progress(TextColumn(f"render {scenario.name}"), BarColumn(),
+                           TextColumn("{task.completed}/{task.total}"),
                            TimeRemainingColumn(), transient=True)
             task = bar.add_task("frames", total=timeline.n_frames)
             bar.start()
@@ -185,7 +185,8 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                 t0 = times.add("camera model", t0)
                 frames.append({
                     "index": i, "time_s": round(float(timeline.times_s[i]), 6),
-                    "rgb": coverage_labels(timeline, i, "rgb", buffers.coverage["rgb"], rgb_cam.width_px, rgb_cam.height_px),
+                    "rgb": coverage_labels(timeline, i, "rgb", buffers.coverage["rgb"], rgb_cam.width_px,
+                                           rgb_cam.height_px),
                     "thermal": coverage_labels(timeline, i, "thermal", buffers.coverage["thermal"], th_cam.width_px,
                                                th_cam.height_px, netd),
                 })
@@ -275,7 +276,3 @@ def render_rgb_video(scenario: Scenario, seed: int, n_frames: int, width_px: int
     finally:
         renderer.close()
     return out
-
-
-def load_json(path: Path) -> dict:
-    return json.loads(Path(path).read_text())

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -25,6 +24,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from scenes.kinds import DRONE_KINDS
 from scenes.loader import GENERATION_DIR
 from scenes.schema import Scenario
 from simulator.formats.trident import (
@@ -43,9 +43,9 @@ from simulator.formats.trident import (
     mfcc_segments,
     write_clip,
 )
+from simulator.jobs import run_jobs
 from simulator.physics.acoustics import (
     AUDIO_SAMPLE_RATE_HZ,
-    DRONE_KINDS,
     Ambience,
     band_level_db,
     synthesize_audio,
@@ -330,7 +330,8 @@ def draw_scene(dist: SceneDistribution, config: TridentConfig, seed: int, index:
     base = {"name": name, "duration_s": config.clip_duration_s, "frame_rate_hz": float(config.video_fps),
             "sky": sky, "atmosphere": atmosphere,
             "camera_rig": {"position_m": cam.tolist(), "look_at_m": np.round(centre, 3).tolist(),
-                           "rgb": {"width_px": config.video_px, "height_px": config.video_px, "hfov_deg": round(hfov, 4)},
+                           "rgb": {"width_px": config.video_px, "height_px": config.video_px,
+                                   "hfov_deg": round(hfov, 4)},
                            "thermal": {"width_px": 16, "height_px": 16, "hfov_deg": round(hfov, 4)}}}
     drone_s = Scenario.model_validate({**base, "targets": [*confusers, drone]})
     twin_s = Scenario.model_validate({**base, "targets": confusers})
@@ -534,55 +535,18 @@ def _write_one_clip(tmp: Path, k: int, item: PlanItem, config: TridentConfig, fr
     return {"clip": k + 1, "group": item.group, **{m: v for m, v in meta.items() if m != "drone_px"}}
 
 
-def _clip_worker_init(driver_pid: int) -> None:
-    from simulator.dataset.generate import _die_with_driver
-
-    _die_with_driver(driver_pid)
+def _clip_worker_init() -> None:
     import drjit as dr
 
     dr.set_thread_count(1)  # one process per core: Dr.Jit's own pool would oversubscribe
 
 
-def _run_clip_jobs(jobs: list[tuple], workers: int, progress: bool, label: str):
-    """Yield each job's manifest entry (in completion order) with a progress bar; in-process for one
-    worker, else a process pool whose workers die with the driver (see generate._die_with_driver)."""
-    bar = task = None
-    if progress:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-        task = bar.add_task("clips", total=len(jobs))
-        bar.start()
-    try:
-        if workers <= 1 or len(jobs) <= 1:
-            for job in jobs:
-                yield _write_one_clip(*job)
-                if bar is not None:
-                    bar.advance(task)
-            return
-        import multiprocessing as mp
-        from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
-
-        method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
-        pool = ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=mp.get_context(method),
-                                   initializer=_clip_worker_init, initargs=(os.getpid(),))
-        try:
-            pending = {pool.submit(_write_one_clip, *job) for job in jobs}
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_EXCEPTION)
-                for future in done:
-                    yield future.result()  # a failed clip raises here: the run stops, tmp is removed
-                    if bar is not None:
-                        bar.advance(task)
-        except BaseException:
-            from simulator.dataset.generate import terminate_pool
-
-            terminate_pool(pool)
-            raise
-        pool.shutdown(wait=True)
-    finally:
-        if bar is not None:
-            bar.stop()
+def _run_clip_jobs(jobs: list[tuple], workers: int, progress: bool, label: str) -> list[dict[str, Any]]:
+    """Each job's manifest entry (in job order) with a progress bar; in-process for one worker, else
+    a forkserver pool (simulator.jobs: workers die with the driver); a failed clip stops the run."""
+    start = "inline" if workers <= 1 or len(jobs) <= 1 else "forkserver"
+    return run_jobs(_write_one_clip, jobs, workers=workers, start=start, progress=label if progress else None,
+                    on_error="raise", initializer=_clip_worker_init)
 
 
 def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir: str | Path, seed: int, *,
@@ -620,11 +584,9 @@ def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir:
     if tmp.exists():
         shutil.rmtree(tmp)
     tmp.mkdir()
-    clips_meta = []
     try:
         jobs = [(tmp, k, plan[k], config, frames_fn, n_frames) for k in range(len(plan))]
-        for entry in _run_clip_jobs(jobs, workers, progress, f"trident {config.name}"):
-            clips_meta.append(entry)
+        clips_meta = _run_clip_jobs(jobs, workers, progress, f"trident {config.name}")
         clips_meta.sort(key=lambda c: c["clip"])
         manifest = {
             "format": "trident", "generator": "simulator.dataset.trident.generate_trident", "seed": int(seed),

@@ -199,11 +199,6 @@ def read_label_file(path: Path, *, strict: bool = True,
     return exist, boxes
 
 
-def read_antiuav_labels(path: Path) -> tuple[np.ndarray, list[list[float] | None]]:
-    """Deprecated name of :func:`read_label_file`."""
-    return read_label_file(path)
-
-
 def _frames(folder: Path, label: Path) -> list[Path]:
     """Image files sorted by their trailing index (``000001``, ``infraredI0000``); indices consecutive."""
     indexed = []
@@ -309,7 +304,8 @@ def find_sequences(root: Path) -> list[Path]:
     for name in LABEL_FILES:
         for label in root.rglob(name):
             folder = label.parent
-            if folder.name.endswith("_visible") and (folder.parent / folder.name[: -len("_visible")] / "IR_label.json").is_file():
+            if folder.name.endswith("_visible") and (folder.parent / folder.name[: -len("_visible")]
+                                                     / "IR_label.json").is_file():
                 continue
             found.add(folder)
     return sorted(found)

@@ -106,10 +106,11 @@ def export_coco(entries: Iterable[dict[str, Any]], out: Path, *, distractors: bo
         video = f"{e['index'] + 1:04d}"
         seq = Path(e["path"])
         n = load_meta(seq)["n_frames"]
-        for modality, (im_dir, camera) in _CAMERAS.items():
+        for im_dir, camera in _CAMERAS.values():
             source = "rgb" if camera == "rgb" else "thermal_agc"
             for i in range(n):
-                write_jpeg(out / e["split"] / video / im_dir / mot_frame_name(i), read_image(seq / source / frame_name(i, "png")))
+                write_jpeg(out / e["split"] / video / im_dir / mot_frame_name(i),
+                           read_image(seq / source / frame_name(i, "png")))
         by_split.setdefault(e["split"], []).append((video, seq))
     for split, seqs in sorted(by_split.items()):
         for modality in _CAMERAS:
@@ -152,7 +153,8 @@ class CocoVideo:
 
     def frames(self, video_id: int) -> list[dict[str, Any]]:
         """Images of one video in frame order."""
-        return sorted((im for im in self.images if im.get("video_id") == video_id), key=lambda im: im.get("frame_id", im["id"]))
+        return sorted((im for im in self.images if im.get("video_id") == video_id),
+                      key=lambda im: im.get("frame_id", im["id"]))
 
     def tracks(self, video_id: int, *, include_distractors: bool = True) -> dict[int, dict[int, list[float]]]:
         """{track_id: {frame_id: [x, y, w, h]}} of one video."""
@@ -163,7 +165,8 @@ class CocoVideo:
             for ann in by_image.get(im["id"], []):
                 if not include_distractors and cats.get(ann["category_id"], {}).get("distractor"):
                     continue
-                out.setdefault(int(ann.get("track_id", -1)), {})[int(im.get("frame_id", im["id"]))] = [float(v) for v in ann["bbox"]]
+                track = out.setdefault(int(ann.get("track_id", -1)), {})
+                track[int(im.get("frame_id", im["id"]))] = [float(v) for v in ann["bbox"]]
         return out
 
     def image_path(self, image: dict[str, Any]) -> Path:

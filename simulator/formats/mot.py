@@ -120,7 +120,8 @@ def export_mmuav(sequence_dir: Path, out_dir: Path, name: str, *, annotate_every
                          if r not in drone]
                 (tmp / gt_dir / DISTRACTOR_FILE).write_text(_lines(extra))
             cam = meta["cameras"][camera]
-            (tmp / ini).write_text(seqinfo_text(name, im_dir, meta["frame_rate_hz"], n, cam["width_px"], cam["height_px"]))
+            (tmp / ini).write_text(seqinfo_text(name, im_dir, meta["frame_rate_hz"], n, cam["width_px"],
+                                                cam["height_px"]))
     return final
 
 
@@ -287,7 +288,8 @@ def _frames(folder: Path, info: dict[str, str], ini: Path) -> list[Path]:
         if i != expected:
             raise FormatError(folder, "frame numbers", f"frame {expected} is missing (next file is {p.name})")
     if "seqLength" in info and indexed and len(indexed) != int(info["seqLength"]):
-        raise FormatError(ini, "key 'seqLength'", f"is {info['seqLength']} but {folder.name}/ holds {len(indexed)} frames")
+        raise FormatError(ini, "key 'seqLength'",
+                          f"is {info['seqLength']} but {folder.name}/ holds {len(indexed)} frames")
     return [p for _, p in indexed]
 
 
@@ -307,7 +309,8 @@ def load_sequence(folder: Path, *, strict: bool = True) -> dict[str, MotTrack]:
         frames = _frames(image_dir, info, folder / ini)
         length = int(info["seqLength"]) if "seqLength" in info else None
         skipped = Skipped()
-        gt = read_gt(gt_path, seq_length=length, strict=strict, skipped=skipped) if gt_path.is_file() else np.zeros((0, 9))
+        gt = read_gt(gt_path, seq_length=length, strict=strict,
+                     skipped=skipped) if gt_path.is_file() else np.zeros((0, 9))
         extra_path = folder / gt_dir / DISTRACTOR_FILE
         extra = (read_gt(extra_path, seq_length=length, strict=strict, skipped=skipped) if extra_path.is_file()
                  else np.zeros((0, 9)))

@@ -130,5 +130,6 @@ def read_sigmf(meta_path: Path) -> tuple[np.ndarray, dict[str, Any]]:
     starts = [c["core:sample_start"] for c in captures]
     n = starts[1] - starts[0] if len(starts) > 1 else samples.size
     if n <= 0 or samples.size != n * len(starts):
-        raise FormatError(meta_path, "captures", f"{samples.size} samples do not split into {len(starts)} captures of {n}")
+        raise FormatError(meta_path, "captures",
+                          f"{samples.size} samples do not split into {len(starts)} captures of {n}")
     return samples.reshape(len(starts), n), f._metadata

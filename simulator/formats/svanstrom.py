@@ -316,7 +316,8 @@ class SvanstromBenchmark:
         try:
             known = AUDIO_CLASSES if clip.sensor == "audio" else VIDEO_CLASSES
             if clip.cls not in known:
-                raise FormatError(f"{self.where}/{clip.media}", "class", f"unknown class {clip.cls!r}; expected one of {known}")
+                raise FormatError(f"{self.where}/{clip.media}", "class",
+                                  f"unknown class {clip.cls!r}; expected one of {known}")
             if clip.sensor == "audio":
                 self.audio(clip)
             else:

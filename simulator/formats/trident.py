@@ -37,8 +37,8 @@ from typing import Any, Iterator, Literal, Protocol
 
 import numpy as np
 
-from simulator.physics.acoustics import AUDIO_SAMPLE_RATE_HZ, write_wav
 from simulator.formats.validation import FormatError, Skipped, SkippedRowsWarning, read_json
+from simulator.physics.acoustics import AUDIO_SAMPLE_RATE_HZ, write_wav
 from simulator.physics.rf import RFCapture, RFConfig
 
 SEGMENT_S = 0.25
@@ -79,7 +79,8 @@ def mfcc_segments(audio: np.ndarray, sample_rate_hz: float, n_segments: int | No
     x = np.asarray(audio, dtype=np.float32).ravel()
     count = int(np.ceil(x.size / seg)) if n_segments is None else int(n_segments)
     x = np.pad(x, (0, max(0, count * seg - x.size)))[: count * seg].reshape(count, seg)
-    n_fft = MFCC_N_FFT if abs(sample_rate_hz - AUDIO_SAMPLE_RATE_HZ) < 1 else int(2 ** np.ceil(np.log2(0.0232 * sample_rate_hz)))
+    n_fft = (MFCC_N_FFT if abs(sample_rate_hz - AUDIO_SAMPLE_RATE_HZ) < 1
+             else int(2 ** np.ceil(np.log2(0.0232 * sample_rate_hz))))
     power = librosa.feature.melspectrogram(y=x, sr=sample_rate_hz, n_fft=n_fft, hop_length=mfcc_hop_length(seg),
                                            n_mels=MFCC_N_MELS, center=True)
     log_power = 10.0 * np.log10(np.maximum(power, 1e-10))
@@ -364,7 +365,8 @@ def _clip(label: str, scenario: str, number: str, audio: Path, frames: list[tupl
                 raise TypeError
             expected = len(present)
         except (KeyError, TypeError):
-            raise FormatError(labels_json, "key 'segments.drone_present'", "missing (per-segment ground truth)") from None
+            raise FormatError(labels_json, "key 'segments.drone_present'",
+                              "missing (per-segment ground truth)") from None
     have = _audio_segments(audio)
     s = expected if expected is not None else have
     if have < s:
@@ -451,7 +453,8 @@ def discover_clips(root: str | Path, *, strict: bool = True, skipped=None) -> li
     for modality in ("audio", "video", "rf"):
         if not (root / modality).is_dir():
             raise ValueError(f"root: {str(root)!r} has no {modality}/ folder (expected the generated TRIDENT layout "
-                             f"audio/, video/, rf/ or the public one {', '.join(p + '/' for p in PUBLIC_ROOTS.values())})")
+                             "audio/, video/, rf/ or the public one "
+                             f"{', '.join(p + '/' for p in PUBLIC_ROOTS.values())})")
     return _discover_generated(root, manifest, strict, skipped)
 
 
@@ -528,9 +531,11 @@ class TridentDataset:
         data = read_json(clip.labels_json)
         segments = data.get("segments") if isinstance(data, dict) else None
         keys = ("video_visible", "audio_audible", "rf_observable")
-        if not isinstance(segments, dict) or any(not isinstance(segments.get(k), list) or len(segments[k]) < clip.n_segments
+        if not isinstance(segments, dict) or any(not isinstance(segments.get(k), list)
+                                                 or len(segments[k]) < clip.n_segments
                                                  for k in keys):
-            raise FormatError(clip.labels_json, "key 'segments'", f"needs {', '.join(keys)} with {clip.n_segments} entries")
+            raise FormatError(clip.labels_json, "key 'segments'",
+                              f"needs {', '.join(keys)} with {clip.n_segments} entries")
         return segments
 
     @staticmethod
@@ -641,7 +646,8 @@ def export_public(src_root: str | Path, out: str | Path, *, mfcc: str = "evids",
         for i, frame in enumerate(clip.frames[: FRAMES_PER_SEGMENT * clip.n_segments], start=1):
             (video_dir / f"{clip.number}_frame_{i}.jpg").write_bytes(frame.read_bytes())
         for j, image in enumerate(clip.rf[: clip.n_segments], start=1):
-            (rf_dir / f"{clip.number}_frame_{j}.jpg").write_bytes(_jpeg(_read_image(image, grayscale_ok=True), jpeg_quality))
+            (rf_dir / f"{clip.number}_frame_{j}.jpg").write_bytes(_jpeg(_read_image(image, grayscale_ok=True),
+                                                                        jpeg_quality))
         if clip.labels_json is not None:
             dest = out / PUBLIC_EXTRAS["labels"] / rel / f"{clip.number}.json"
             dest.parent.mkdir(parents=True, exist_ok=True)

@@ -68,7 +68,8 @@ class Checker:
         """Warn once with the number of rows this file had skipped."""
         n = len(self.skipped) - self._start
         if n:
-            warnings.warn(f"{self.path}: skipped {n} bad row(s) (strict=False); first: {self.skipped.reasons[self._start]}",
+            warnings.warn(f"{self.path}: skipped {n} bad row(s) (strict=False); first: "
+                          f"{self.skipped.reasons[self._start]}",
                           SkippedRowsWarning, stacklevel=3)
 
 

@@ -32,7 +32,8 @@ def _writer(folder: Path, split: str, shard_bytes: int):
     except ImportError:
         from scenes.errors import UserInputError
 
-        raise UserInputError("the webdataset export needs the 'webdataset' package: pip install 'evids[formats]'") from None
+        raise UserInputError("the webdataset export needs the 'webdataset' package: pip install "
+                             "'evids[formats]'") from None
 
     folder.mkdir(parents=True, exist_ok=True)
     pattern = str(folder / split).replace("%", "%%") + "/" + split.replace("%", "%%") + "-%06d.tar"

@@ -19,6 +19,8 @@ import scipy.fft as sfft
 from numpy.lib.stride_tricks import sliding_window_view
 from pydantic import BaseModel, ConfigDict, Field
 
+from scenes.kinds import DRONE_KINDS
+from scenes.kinds import DRONE_SIZE_M as _REFERENCE_SIZE_M
 from simulator.seeding import rng_for
 
 AUDIO_SAMPLE_RATE_HZ = 44_100
@@ -34,14 +36,10 @@ MOTOR_POLE_PAIRS = 7              # 12N14P outrunner: electrical frequency = 7 x
 N_BLADE_HARMONICS = 10
 MAX_BLADE_HARMONICS = 30          # cap of the randomised line count (synthesis cost ~ lines)
 
-MULTIROTOR_KINDS = ("quadcopter", "hexacopter")
-DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
-
 # relative source levels at 1 m (dB SPL, unweighted) for the reference size: they fix the tonal /
 # broadband balance; the absolute level comes from the sound power (sound_power_dba); docs/AUDIO_RF.md
 _TONAL_DB_1M = {"quadcopter": 78.0, "hexacopter": 81.0, "fixed_wing": 80.0}
 _BROADBAND_DB_1M = {"quadcopter": 72.0, "hexacopter": 75.0, "fixed_wing": 74.0}
-_REFERENCE_SIZE_M = {"quadcopter": 0.45, "hexacopter": 0.8, "fixed_wing": 1.5}
 BROADBAND_SHAPE = (300.0, 6000.0, -3.0)   # rotor broadband: band edges (Hz) and tilt (dB/octave)
 BPF_MODULATION = 0.3                      # broadband amplitude modulation at the blade-passing frequency
 
@@ -126,7 +124,8 @@ def _check_nonnegative(name: str, values: np.ndarray) -> None:
 def check_sample_rate(sample_rate_hz: float, highest_band_hz: float = AUDIO_BAND_HZ) -> None:
     """Reject a sample rate that cannot carry the highest synthesised band (Nyquist)."""
     if not sample_rate_hz >= 2.0 * highest_band_hz:
-        raise ValueError(f"sample_rate_hz must be >= 2 x highest band ({2 * highest_band_hz:.0f} Hz), got {sample_rate_hz}")
+        raise ValueError(f"sample_rate_hz must be >= 2 x highest band ({2 * highest_band_hz:.0f} Hz), got "
+                         f"{sample_rate_hz}")
 
 
 def db_spl_to_pa(level_db: float) -> float:
@@ -179,7 +178,8 @@ def a_weighting_db(frequency_hz: np.ndarray | float) -> np.ndarray:
     """IEC 61672-1 A-weighting (dB): 20 lg R_A(f) + 2.00, R_A = 12194^2 f^4 / ((f^2 + 20.6^2)
     sqrt((f^2 + 107.7^2)(f^2 + 737.9^2)) (f^2 + 12194^2))."""
     f2 = np.asarray(frequency_hz, dtype=np.float64) ** 2
-    ra = 12194.0 ** 2 * f2 ** 2 / ((f2 + 20.6 ** 2) * np.sqrt((f2 + 107.7 ** 2) * (f2 + 737.9 ** 2)) * (f2 + 12194.0 ** 2))
+    ra = 12194.0 ** 2 * f2 ** 2 / ((f2 + 20.6 ** 2) * np.sqrt((f2 + 107.7 ** 2) * (f2 + 737.9 ** 2))
+                                   * (f2 + 12194.0 ** 2))
     return 20.0 * np.log10(np.maximum(ra, 1e-30)) + 2.00
 
 
@@ -257,7 +257,8 @@ def iso9613_ground_attenuation_db(source_height_m: np.ndarray | float, receiver_
     near = 1.0 - np.exp(-dp / 50.0)
 
     def region(h):
-        a = 1.5 + 3.0 * np.exp(-0.12 * (h - 5.0) ** 2) * near + 5.7 * np.exp(-0.09 * h ** 2) * (1 - np.exp(-2.8e-6 * dp ** 2))
+        a = (1.5 + 3.0 * np.exp(-0.12 * (h - 5.0) ** 2) * near + 5.7 * np.exp(-0.09 * h ** 2)
+             * (1 - np.exp(-2.8e-6 * dp ** 2)))
         b = 1.5 + 8.6 * np.exp(-0.09 * h ** 2) * near
         c = 1.5 + 14.0 * np.exp(-0.46 * h ** 2) * near
         d = 1.5 + 5.0 * np.exp(-0.9 * h ** 2) * near
@@ -523,7 +524,8 @@ def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_r
     broadband = hiss * bpf_mod * np.mean(thrust, axis=0) ** 1.25 * broadband_pa
     if pwm_on:                          # ESC switching whine: fixed frequency, every rotor, random phases
         phases = rng.uniform(0, 2 * np.pi, size=n_rotors)
-        tonal = tonal + pwm_pa * np.sum(np.cos(2 * np.pi * noise.pwm_hz * retarded.tau_s[None, :] + phases[:, None]), axis=0)
+        tonal = tonal + pwm_pa * np.sum(np.cos(2 * np.pi * noise.pwm_hz * retarded.tau_s[None, :] + phases[:, None]),
+                                        axis=0)
     if tonal_gain is not None:
         tonal = tonal * tonal_gain
     if broadband_gain is not None:
@@ -615,7 +617,7 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
     turbine: 1-16 kHz noise (-2 dB/octave) with a wandering 2-8 kHz tone (-14..-4 dB). Phases run on the emission clock.
     """
     r = HELICOPTER_RANGES
-    u = lambda name: float(rng.uniform(*r[name]))
+    u = lambda name: float(rng.uniform(*r[name]))  # noqa: E731
     shaft_hz = u("tip_speed_mps") / (2 * np.pi * u("radius_m"))
     main_blades = int(rng.choice(r["main_blades"]))
     bpf = shaft_hz * main_blades
@@ -634,9 +636,13 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
     tail = np.sum(k[:, None] ** -1.0 * np.cos(2 * np.pi * k[:, None] * tail_bpf * tau[None, :]
                                               + rng.uniform(0, 2 * np.pi, size=(k.size, 1))), axis=0)
     f_turb = u("turbine_hz") * (1 + 0.01 * _smooth_random(rng, tau.size, sample_rate_hz, 0.5))
-    turbine = 0.5 * np.cos(2 * np.pi * np.cumsum(f_turb) / sample_rate_hz) + _source_noise(rng, retarded, sample_rate_hz, 1000.0, 16000.0, -2.0)
-    broad = _source_noise(rng, retarded, sample_rate_hz, 200.0, u("broadband_high_hz"), -7.0) * (1 + 0.5 * np.cos(2 * np.pi * phase))
-    parts = [(broad, 0.0), (pulses, u("thump_db")), (slap, u("slap_db")), (tail, u("tail_db")), (turbine, u("turbine_db"))]
+    turbine = 0.5 * np.cos(2 * np.pi * np.cumsum(f_turb) / sample_rate_hz) + _source_noise(rng, retarded,
+                                                                                           sample_rate_hz, 1000.0,
+                                                                                           16000.0, -2.0)
+    broad = _source_noise(rng, retarded, sample_rate_hz, 200.0, u("broadband_high_hz"),
+                          -7.0) * (1 + 0.5 * np.cos(2 * np.pi * phase))
+    parts = [(broad, 0.0), (pulses, u("thump_db")), (slap, u("slap_db")), (tail, u("tail_db")),
+             (turbine, u("turbine_db"))]
     total = np.zeros(tau.size)
     for x, db in parts:
         total += x / max(float(np.sqrt(np.mean(x ** 2))), 1e-30) * 10 ** (db / 20)
@@ -909,7 +915,8 @@ def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, d
                                               atm.relative_humidity, rng, wingbeats.get(track.name, 4.0),
                                               ground_factor=ground_factor, sound_power_db=power)
         if track.kind in DRONE_KINDS:
-            scene.sound_power_dba[track.name] = power if power is not None else sound_power_dba(track.kind, track.size_m)
+            scene.sound_power_dba[track.name] = (power if power is not None
+                                                 else sound_power_dba(track.kind, track.size_m))
         mix += received
         scene.targets_pa[track.name] = received.astype(np.float32)
         scene.target_range_m[track.name] = range_m.astype(np.float32)

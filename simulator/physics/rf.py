@@ -26,6 +26,7 @@ import numpy as np
 import scipy.fft as sfft
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from scenes.kinds import DRONE_KINDS
 from simulator.physics import propagation as prop
 from simulator.physics import rf_links
 from simulator.physics.propagation import SPEED_OF_LIGHT_MPS, free_space_path_loss_db  # noqa: F401 (re-export)
@@ -39,7 +40,6 @@ SPECTROGRAM_PX = 112
 OFDM_TAPER = 32                    # sin^2 edge window of each OFDM symbol (1.6 us at 20 MS/s); 2 x 32 <= CP keeps
                                    # an FFT window starting 32 samples into the CP untouched
 RAMP_S = 10e-6                     # burst power ramp-up/down time of the hopping transmitters
-DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
 _EMITTER_WIFI, _EMITTER_BT, _EMITTER_NOISE = 2, 3, 4
 _PART_SCHEDULE, _PART_WAVEFORM, _PART_FADING = 0, 1, 2
 # fields of the first RF model (fixed 8-channel hopping, one video link); replaced by ``links``
@@ -192,7 +192,8 @@ class RFCapture:
     link_rx_dbm: np.ndarray = field(default_factory=lambda: np.zeros(0))        # (S,) strongest drone link budget
     control_snr_db: np.ndarray = field(default_factory=lambda: np.zeros(0))     # (S,) best control burst in capture
     video_snr_db: np.ndarray = field(default_factory=lambda: np.zeros(0))       # (S,) best video burst in capture
-    realised_snr_db: np.ndarray = field(default_factory=lambda: np.zeros(0))    # (S,) link power while on / noise, full band
+    # (S,) link power while on / noise, full band
+    realised_snr_db: np.ndarray = field(default_factory=lambda: np.zeros(0))
     drone_range_m: np.ndarray = field(default_factory=lambda: np.zeros(0))      # (S,)
     link_snr_db: dict[str, np.ndarray] = field(default_factory=dict)        # "<target>/<link>" -> (S,) best in-band SNR
     bursts_per_capture: dict[str, np.ndarray] = field(default_factory=dict)  # "<target>/<link>" -> (S,) int
@@ -244,7 +245,8 @@ def spectrogram_dbm(iq: np.ndarray, sample_rate_hz: float, px: int = SPECTROGRAM
     window = np.hanning(frame + 2)[1:-1].astype(np.float32)
     frames = x[:, : frame * px].reshape(x.shape[0], px, frame) * window
     spec = np.abs(sfft.fftshift(sfft.fft(frames, n=nfft, axis=-1), axes=-1)) ** 2
-    pooled = spec.reshape(x.shape[0], px, px, nfft // px).sum(-1) / (nfft * float(np.sum(window.astype(np.float64) ** 2)))
+    pooled = spec.reshape(x.shape[0], px, px, nfft // px).sum(-1) / (nfft
+                                                                     * float(np.sum(window.astype(np.float64) ** 2)))
     return 10 * np.log10(np.maximum(pooled, 1e-30)).transpose(0, 2, 1)[:, ::-1, :].astype(np.float32)
 
 
@@ -436,7 +438,8 @@ def _background_fhss(cfg: RFConfig, preset: rf_links.FhssPreset, rx_dbm: float, 
     amp = np.sqrt(10 ** (rx_dbm / 10))
     for s, idx in enumerate(rf_links.bursts_in_windows(sched, starts, cfg.capture_s)):
         for b in idx[visible[idx]]:
-            _write_burst(iq[s], cfg, preset, rng, starts[s], sched.start_s[b], sched.duration_s[b], sched.centre_hz[b], amp)
+            _write_burst(iq[s], cfg, preset, rng, starts[s], sched.start_s[b], sched.duration_s[b], sched.centre_hz[b],
+                         amp)
 
 
 def _fhss_link(cfg: RFConfig, preset: rf_links.FhssPreset, geo: _Geometry, starts: np.ndarray, duration_s: float,

@@ -87,7 +87,8 @@ def _centres(bandwidth_hz: float, step_hz: float) -> tuple[float, ...]:
     return tuple(float(c) for c in np.arange(lo, hi + 1.0, step_hz))
 
 
-_ELRS = {"role": "control", "first_channel_hz": 2400.4e6, "channel_spacing_hz": 1e6, "n_channels": 80, "modulation": "lora",
+_ELRS = {"role": "control", "first_channel_hz": 2400.4e6, "channel_spacing_hz": 1e6, "n_channels": 80,
+         "modulation": "lora",
              "occupied_bandwidth_hz": 812.5e3, "packets_per_hop": 4, "tx_power_dbm": 20.0}
 
 LINK_PRESETS: dict[str, LinkPreset] = {
@@ -178,10 +179,6 @@ def ofdm_schedule(preset: OfdmPreset, rng: np.random.Generator, duration_s: floa
     gaps = rng.exponential(mean_gap, size=n) if preset.duty < 1 else np.zeros(n)
     starts = np.cumsum(np.concatenate([[-rng.uniform(0, mean_burst + mean_gap)], (lengths + gaps)[:-1]]))
     return Schedule(start_s=starts, duration_s=lengths, centre_hz=np.full(n, centre), bandwidth_hz=preset.bandwidth_hz)
-
-
-def schedule_for(preset: LinkPreset, rng: np.random.Generator, duration_s: float) -> Schedule:
-    return fhss_schedule(preset, rng, duration_s) if preset.kind == "fhss" else ofdm_schedule(preset, rng, duration_s)
 
 
 def band_overlap_fraction(centre_hz: np.ndarray, bandwidth_hz: float, window_low_hz: float,

@@ -11,7 +11,7 @@ from functools import lru_cache
 import numpy as np
 
 # NumPy >= 2.0 names it trapezoid, 1.24-1.26 (allowed by pyproject) trapz: the same rule
-_trapezoid = getattr(np, "trapezoid", None) or np.trapz
+_trapezoid = getattr(np, "trapezoid", None) or np.trapz  # type: ignore[attr-defined]  # noqa: NPY201 (numpy < 2: only trapz)
 
 BAND_LOW_M = 8e-6
 BAND_HIGH_M = 14e-6

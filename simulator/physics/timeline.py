@@ -251,7 +251,8 @@ def pan_tilt_pointing(aim_m: np.ndarray, origin_m: np.ndarray, tracking, frame_r
     return forward, lost
 
 
-def _camera_tracks(scenario: Scenario, targets: list[TargetTrack], n_frames: int, seed: int = 0) -> dict[str, CameraTrack]:
+def _camera_tracks(scenario: Scenario, targets: list[TargetTrack], n_frames: int,
+                   seed: int = 0) -> dict[str, CameraTrack]:
     rig = scenario.camera_rig
     origin = np.tile(np.asarray(rig.position_m, dtype=np.float64), (n_frames, 1))
     if rig.track_target is not None and rig.tracking is not None:
@@ -280,7 +281,8 @@ def _camera_tracks(scenario: Scenario, targets: list[TargetTrack], n_frames: int
     t_origin = origin + cam_to_world @ np.asarray(off.translation_m)
     t_rot = cam_to_world @ r_off
     th = rig.thermal
-    cams["thermal"] = CameraTrack("thermal", t_origin, -t_rot[:, :, 2], t_rot[:, :, 1], th.width_px, th.height_px, th.hfov_deg)
+    cams["thermal"] = CameraTrack("thermal", t_origin, -t_rot[:, :, 2], t_rot[:, :, 1], th.width_px, th.height_px,
+                                  th.hfov_deg)
     return cams
 
 
@@ -303,7 +305,8 @@ def build_timeline(scenario: Scenario, seed: int, n_frames: int | None = None) -
         vel = (after - before) / (2 * h)
         acc = (after - 2 * pos + before) / h ** 2
         if count > 2:
-            acc = np.stack([np.convolve(np.pad(acc[:, k], 2, mode="edge"), np.ones(5) / 5, mode="valid") for k in range(3)], -1)
+            acc = np.stack([np.convolve(np.pad(acc[:, k], 2, mode="edge"), np.ones(5) / 5, mode="valid")
+                            for k in range(3)], -1)
         rotation, thrust_ratio = _attitude(target.kind, vel, acc)
         n_rotors = _rotor_count(target.kind)
         hover = rotor_hover_rpm(target.kind, target.size_m)

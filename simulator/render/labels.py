@@ -15,7 +15,8 @@ import numpy as np
 from simulator.physics import thermal
 from simulator.physics.timeline import Timeline
 
-CLASS_OF_KIND = {"quadcopter": "drone", "hexacopter": "drone", "fixed_wing": "drone", "bird": "bird", "airliner": "aircraft",
+CLASS_OF_KIND = {"quadcopter": "drone", "hexacopter": "drone", "fixed_wing": "drone", "bird": "bird",
+                 "airliner": "aircraft",
                  "helicopter": "helicopter"}
 BACKGROUND_RING_PX = 4
 

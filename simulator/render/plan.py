@@ -78,7 +78,8 @@ class CameraPlan:
                 "coverage_rays_per_px": COVERAGE_SUBSAMPLES ** 2}
 
 
-def projected_boxes(points_px: np.ndarray, depth_m: np.ndarray, width: int, height: int) -> tuple[float, float, float, float] | None:
+def projected_boxes(points_px: np.ndarray, depth_m: np.ndarray, width: int,
+                    height: int) -> tuple[float, float, float, float] | None:
     """Continuous [x_min, y_min, x_max, y_max] of projected vertices, clipped to the image; None
     when nothing is in front of the camera or the box misses the image. A target straddling the
     near plane gets the whole image (its projection is unbounded)."""
@@ -94,7 +95,8 @@ def projected_boxes(points_px: np.ndarray, depth_m: np.ndarray, width: int, heig
     return (max(0.0, float(x0)), max(0.0, float(y0)), min(float(width), float(x1)), min(float(height), float(y1)))
 
 
-def pixel_box(box: tuple[float, float, float, float], width: int, height: int, pad_px: int = 0) -> tuple[int, int, int, int]:
+def pixel_box(box: tuple[float, float, float, float], width: int, height: int,
+              pad_px: int = 0) -> tuple[int, int, int, int]:
     """Integer [x0, y0, x1, y1) of the pixels a continuous box touches, padded and clipped."""
     x0 = max(0, int(math.floor(box[0])) - pad_px)
     y0 = max(0, int(math.floor(box[1])) - pad_px)

@@ -33,8 +33,8 @@ from simulator.physics.sky import (
     sun_elevation_azimuth_deg,
 )
 from simulator.physics.timeline import Timeline
-from simulator.render.geometry import TrackGeometry
 from simulator.render import scalar
+from simulator.render.geometry import TrackGeometry
 from simulator.render.plan import (
     BATCH_FRAMES,
     COVERAGE_SUBSAMPLES,
@@ -150,7 +150,8 @@ class SkyMaps:
         if is_scalar(mi):  # one direction per call (simulator.render.scalar)
             rgb = scalar.eval_emitter(mi, sky_only, wi).reshape(half, ENV_WIDTH, 3)
             sun_only = mi.load_dict({**sunsky, "sky_scale": 0.0})
-            sun_value = scalar.eval_emitter(mi, sun_only, sun_wi[:, None]).astype(np.float64).ravel() * SUN_SOLID_ANGLE_SR
+            sun_value = (scalar.eval_emitter(mi, sun_only, sun_wi[:, None]).astype(np.float64).ravel()
+                         * SUN_SOLID_ANGLE_SR)
         else:
             si = dr.zeros(mi.SurfaceInteraction3f, wi.shape[1])
             si.wi = mi.Vector3f(wi[0], wi[1], wi[2])
@@ -195,7 +196,8 @@ class SkyMaps:
     def thermal(self) -> np.ndarray:
         """LWIR band radiance map (computed only when a thermal camera renders)."""
         rot = np.ascontiguousarray(np.array(self.to_world.matrix, dtype=np.float64)[:3, :3])
-        return self.thermal_sky.radiance(_env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())).astype(np.float32)
+        directions = _env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())
+        return self.thermal_sky.radiance(directions).astype(np.float32)
 
     @cached_property
     def reflected_lwir(self) -> float:
@@ -207,10 +209,6 @@ class SkyMaps:
         u = (np.arctan2(local[0], -local[2]) / (2 * np.pi)) % 1.0
         v = np.arccos(np.clip(local[1], -1, 1)) / np.pi
         return self.rgb[min(int(v * ENV_HEIGHT), ENV_HEIGHT - 1), min(int(u * ENV_WIDTH), ENV_WIDTH - 1)]
-
-
-def _color(mi, values) -> object:
-    return mi.Color3f(*[float(v) for v in values])
 
 
 def is_scalar(mi) -> bool:
@@ -264,7 +262,7 @@ class _View:
         self._key_target = np.array([k[1] for k in self.keys])
         self._key_role = [k[2] for k in self.keys]
         faces, offset = [], 0
-        for (slot, ti, role), nv in zip(self.keys, vert_counts):
+        for (_slot, ti, role), nv in zip(self.keys, vert_counts):
             faces.append((self.terrain.faces if ti < 0 else owner.geometry[ti].faces(role)) + offset)
             offset += nv
         # one zero-area face spanning a fixed box (never hit) pins the scene's bounding sphere, which
@@ -297,7 +295,8 @@ class _View:
             env = np.repeat(owner.sky.thermal[..., None], 3, axis=-1)
         scene["sky"] = {"type": "envmap", "bitmap": mi.Bitmap(env), "to_world": owner.sky.to_world}
         props = mi.Properties()
-        props["bsdf"] = mi.load_dict({"type": "diffuse", "reflectance": {"type": "mesh_attribute", "name": f"{self.attr}_albedo"}})
+        props["bsdf"] = mi.load_dict({"type": "diffuse",
+                                      "reflectance": {"type": "mesh_attribute", "name": f"{self.attr}_albedo"}})
         # the airlight/thermal emission is seen directly; it is not a light worth sampling (weight 0)
         props["emitter"] = mi.load_dict({"type": "area", "sampling_weight": 0.0,
                                          "radiance": {"type": "mesh_attribute", "name": f"{self.attr}_emission"}})
@@ -359,20 +358,18 @@ class _View:
                 albedo[k], emission[k] = owner.rgb_material(ti, role, frame, "rgb")
             else:
                 emission[k] = owner.thermal_radiance(ti, role, frame, "thermal")
-        self.params["targets.vertex_positions"] = mi.Float(self._vertices(slot_frames).ravel())
+        self.params["targets.vertex_positions"] = self._floats(self._vertices(slot_frames).ravel())
         if self.terrain is None:
             pin = np.zeros((1, 3), np.float32)  # the bounding face's attributes (never hit)
-            self.params["targets.face_albedo"] = mi.Float(np.vstack([np.repeat(albedo, self.face_counts, axis=0), pin]).ravel())
-            self.params["targets.face_emission"] = mi.Float(np.vstack([np.repeat(emission, self.face_counts, axis=0), pin]).ravel())
+            self.params["targets.face_albedo"] = self._floats(
+                np.vstack([np.repeat(albedo, self.face_counts, axis=0), pin]).ravel())
+            self.params["targets.face_emission"] = self._floats(
+                np.vstack([np.repeat(emission, self.face_counts, axis=0), pin]).ravel())
         else:
-            self.params["targets.vertex_albedo"] = mi.Float(self._per_vertex(albedo, None).ravel())
+            self.params["targets.vertex_albedo"] = self._floats(self._per_vertex(albedo, None).ravel())
             seen = owner.terrain_seen[self.which][1]
-            self.params["targets.vertex_emission"] = mi.Float(self._per_vertex(emission, owner.terrain_emission(self.which)[seen]).ravel())
-
-        self.params["targets.vertex_positions"] = self._floats(self._vertices(slot_frames).ravel())
-        pin = np.zeros((1, 3), np.float32)  # the bounding face's attributes (never hit)
-        self.params["targets.face_albedo"] = self._floats(np.vstack([np.repeat(albedo, self.face_counts, axis=0), pin]).ravel())
-        self.params["targets.face_emission"] = self._floats(np.vstack([np.repeat(emission, self.face_counts, axis=0), pin]).ravel())
+            self.params["targets.vertex_emission"] = self._floats(
+                self._per_vertex(emission, owner.terrain_emission(self.which)[seen]).ravel())
         self.params.update()
         self._slot_frames = list(slot_frames)
         return tiles
@@ -602,7 +599,8 @@ class _ScalarView(_View):
         plan = self.plan
         idx = np.arange(n_tiles * plan.tile_height * plan.tile_width * self.spp, dtype=np.uint32)
         s, pix = idx % self.spp, idx // self.spp
-        u, v, t = pix % plan.tile_width, (pix // plan.tile_width) % plan.tile_height, pix // (plan.tile_width * plan.tile_height)
+        u, v = pix % plan.tile_width, (pix // plan.tile_width) % plan.tile_height
+        t = pix // (plan.tile_width * plan.tile_height)
         order = sorted(tiles)
         x = np.array([tiles[k].x0 for k in order], np.uint32)[t] + u
         y = np.array([tiles[k].y0 for k in order], np.uint32)[t] + v
@@ -619,7 +617,8 @@ class _ScalarView(_View):
         n_tiles = plan.tiles_per_batch
         slot, x, y, s = self._tile_lanes(tiles, n_tiles)
         jx, jy = self._jitter(x, y, s)
-        o, d = self._rays(slot, x.astype(np.float32) + jx, y.astype(np.float32) + jy, self._camera_arrays(self._slot_frames))
+        o, d = self._rays(slot, x.astype(np.float32) + jx, y.astype(np.float32) + jy,
+                          self._camera_arrays(self._slot_frames))
         far = float(np.float32(plan.far_clip_m))
         if self.integrator is not None:
             value = scalar.path_trace(self.mi, self.scene, self.integrator, seed, o, d, far)
@@ -730,7 +729,8 @@ class SequenceRenderer:
                 self.terrain_seen[which] = self.terrain.subset(_faces_in_view(self.terrain, cam))
                 seen = self.terrain_seen[which][0]
                 if len(seen.faces):
-                    max_range = max(max_range, float(np.linalg.norm(seen.vertices - cam.origin_m[0], axis=1).max()) + 10.0)
+                    max_range = max(max_range, float(np.linalg.norm(seen.vertices - cam.origin_m[0], axis=1).max())
+                                    + 10.0)
             self.boxes[which] = frames_boxes
             self.plans[which] = plan_camera(frames_boxes, cam.width_px, cam.height_px, max_range,
                                             batch_frames=batch_frames, roi=roi)
@@ -846,7 +846,8 @@ class SequenceRenderer:
                 if self.boxes[view.which][frame][ti] is None:
                     continue
                 tile = tiles[(slot, ti)]
-                image[tile.y0:tile.y0 + tile.height, tile.x0:tile.x0 + tile.width] = radiance[slot * plan.tiles_per_frame + ti]
+                image[tile.y0:tile.y0 + tile.height, tile.x0:tile.x0
+                      + tile.width] = radiance[slot * plan.tiles_per_frame + ti]
         coverage, mask = None, None
         if self.labels:
             coverage, mask = self._coverage_records(view, frame, slot, cover)

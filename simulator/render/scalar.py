@@ -19,8 +19,10 @@ def tea_float32(v0: np.ndarray, v1: np.ndarray, rounds: int = 4) -> np.ndarray:
     with np.errstate(over="ignore"):
         for _ in range(rounds):
             total = np.uint32(total + np.uint32(0x9E3779B9))
-            v0 += ((v1 << np.uint32(4)) + np.uint32(0xA341316C)) ^ (v1 + total) ^ ((v1 >> np.uint32(5)) + np.uint32(0xC8013EA4))
-            v1 += ((v0 << np.uint32(4)) + np.uint32(0xAD90777D)) ^ (v0 + total) ^ ((v0 >> np.uint32(5)) + np.uint32(0x7E95761E))
+            v0 += (((v1 << np.uint32(4)) + np.uint32(0xA341316C)) ^ (v1 + total)
+                   ^ ((v1 >> np.uint32(5)) + np.uint32(0xC8013EA4)))
+            v1 += (((v0 << np.uint32(4)) + np.uint32(0xAD90777D)) ^ (v0 + total)
+                   ^ ((v0 >> np.uint32(5)) + np.uint32(0x7E95761E)))
     bits = (v1 >> np.uint32(9)) | np.uint32(0x3F800000)
     return bits.view(np.float32) - np.float32(1.0)
 

@@ -152,7 +152,8 @@ class Scratch:
 
 
 # --- motion ---------------------------------------------------------------------------------------
-def trail_weights(length_samples: int, kind: str, time_constant_s: float, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+def trail_weights(length_samples: int, kind: str, time_constant_s: float,
+                  window_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Sample times (fraction of the window back in time, 0..1) and normalised weights of the
     integration window: 'box' (shutter) or 'exponential' (bolometer, exp(-s/tau) over window_s)."""
     frac = (np.arange(length_samples) + 0.5) / length_samples
@@ -347,7 +348,7 @@ class ThermalSensor:
         if self.params.time_constant_s > 0:
             motion_blur(x, self.motion, frame, 1.0, "exponential", self.params.time_constant_s,
                         self.frame_period_s, self.kernel.shape[0] // 2, in_place=True)
-        if self._state is not None:                   # a x + (1 - a) state, into x (ours; the old state stays as returned)
+        if self._state is not None:  # a x + (1 - a) state, into x (ours; the old state stays as returned)
             x *= np.float32(self.lag_alpha)
             x += np.multiply(self._state, np.float32(1.0 - self.lag_alpha), out=self._scratch("lag", x.shape))
         self._state = x
@@ -378,7 +379,8 @@ class ThermalSensor:
     def metadata(self) -> dict:
         p = self.params
         return {"model": "uncooled microbolometer", **p.model_dump(mode="json"),
-                "psf_centre_pixel_fraction": round(float(self.kernel[self.kernel.shape[0] // 2, self.kernel.shape[1] // 2]), 6),
+                "psf_centre_pixel_fraction": round(float(self.kernel[self.kernel.shape[0] // 2, self.kernel.shape[1]
+                                                                     // 2]), 6),
                 "psf_kernel_px": int(self.kernel.shape[0]), "lag_alpha_per_frame": round(self.lag_alpha, 6),
                 "nuc_reference_k": self.nuc_reference_k,
                 "focal_length_mm": round(self.timeline.cameras["thermal"].focal_px * p.pixel_pitch_um / 1000, 6)}
@@ -479,9 +481,11 @@ class RgbSensor:
                 "focal_length_mm": round(self.timeline.cameras["rgb"].focal_px * self.pixel_pitch_um / 1000, 6),
                 "exposure_time_s_used": round(self.exposure_time_s, 9), "gain": round(self.gain, 6),
                 "auto_exposure_needed_s": round(self.needed_exposure_s, 9),
-                "full_well_e_output_pixel": round(self.full_well_e, 3), "read_noise_e_output_pixel": round(self.read_noise_e, 4),
+                "full_well_e_output_pixel": round(self.full_well_e, 3),
+                "read_noise_e_output_pixel": round(self.read_noise_e, 4),
                 "electrons_at_white": round(self.electrons_per_unit, 3),
-                "psf_centre_pixel_fraction": [round(float(k[k.shape[0] // 2, k.shape[1] // 2]), 6) for k in self.kernels]}
+                "psf_centre_pixel_fraction": [round(float(k[k.shape[0] // 2, k.shape[1] // 2]), 6)
+                                              for k in self.kernels]}
 
 
 class CameraModel:

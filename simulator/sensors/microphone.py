@@ -111,7 +111,7 @@ def record(pressure_pa: np.ndarray, sample_rate_hz: float, *, seed: int, index: 
     if not cfg.enabled or x.size == 0:
         return x.astype(np.float32)
     rng = rng_for(seed, "acoustics", int(index), RECORDER_STREAM_INDEX)
-    u = lambda span: float(rng.uniform(*span))
+    u = lambda span: float(rng.uniform(*span))  # noqa: E731
     hp, lp = u(cfg.highpass_hz), min(u(cfg.lowpass_hz), 0.45 * sample_rate_hz)
     pres_db, pres_hz = u(cfg.presence_db), u(cfg.presence_hz)
     noise_dbfs, target, release = u(cfg.self_noise_dbfs), u(cfg.agc_target_dbfs), u(cfg.agc_release_s)

@@ -8,9 +8,9 @@ inside the camera model's frame loop). Grey frames go in as the luma plane with 
 range conversion of ours beyond ``video_range``); RGB frames through FFmpeg's swscale to 4:2:0 and
 back (the chroma subsampling is part of what a recorder does). ``video_range: limited`` (default)
 puts the 8-bit grey view on video levels, luma = 16 + 219 v / 255, and hands back the decoded luma
-plane as it is: the benchmark's IR clips are such limited-range video (their luma spans 16-235). Only the 8-bit views pass: radiometric counts and kelvin stay as
-the camera made them. Rate control: constant rate factor ``crf`` or average ``bit_rate_bps``; a
-key frame every ``gop_frames``.
+plane as it is: the benchmark's IR clips are such limited-range video (their luma spans 16-235).
+Only the 8-bit views pass: radiometric counts and kelvin stay as the camera made them. Rate
+control: constant rate factor ``crf`` or average ``bit_rate_bps``; a key frame every ``gop_frames``.
 """
 from __future__ import annotations
 

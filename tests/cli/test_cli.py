@@ -53,10 +53,12 @@ def test_degrade_ir_blind_labels_the_conflict_on_a_rendered_sequence(tmp_path):
     scenario = shrink(load_scenario("clear_day_quad"), 320, 256)
     # ideal sensor: thermal.crossover moves the mask's pixels only, so the camera model's PSF halo
     # around the target would keep ~0.2 K of contrast (a limit of that degradation, not of the CLI)
-    scenario = scenario.model_copy(update={"duration_s": 1.6, "camera_rig": scenario.camera_rig.model_copy(update={"sensor": "ideal"})})
+    scenario = scenario.model_copy(update={"duration_s": 1.6,
+                                           "camera_rig": scenario.camera_rig.model_copy(update={"sensor": "ideal"})})
     native = render_sequence(scenario, 7, tmp_path / "data", progress=False)["native"]
     spec = tmp_path / "spec.yaml"
-    spec.write_text(yaml.safe_dump({"version": 1, "programs": [{"name": "ir_blind", "onset_s": 0.4, "duration_s": 0.8}]}))
+    spec.write_text(yaml.safe_dump({"version": 1,
+                                    "programs": [{"name": "ir_blind", "onset_s": 0.4, "duration_s": 0.8}]}))
     result = _evids("degrade", str(native), "--spec", str(spec), "--out", str(tmp_path / "deg"))
     assert result.returncode == 0, result.stderr
     degraded = tmp_path / "deg" / native.name

@@ -22,7 +22,8 @@ def test_export_options_and_verify_garbage(tmp_path):
     assert list((exp / "mot").glob("*/0*/gt_rgb/distractors.txt")) and (exp / "mot" / "gt" / "seqmaps").is_dir()
     assert list((exp / "coco" / "annotations").glob("*-ir.json")) and list((exp / "webdataset").glob("*/*.tar"))
     assert list((exp / "antiuav_rgbt").glob("*/*/infrared/infraredI0000.jpg"))
-    for args, message in ((["--format", "yolo"], "yolo"), (["--format", "mot", "--distractors-as", "x"], "--distractors-as"),
+    for args, message in ((["--format", "yolo"], "yolo"),
+                          (["--format", "mot", "--distractors-as", "x"], "--distractors-as"),
                           (["--format", "coco", "--coco-naming", "x"], "--coco-naming"),
                           (["--format", "trident"], "--format must be one of")):
         bad = _evids("export", str(out), *args, "--out", str(tmp_path / "bad"), "--quiet")
@@ -30,7 +31,8 @@ def test_export_options_and_verify_garbage(tmp_path):
     hashes = out / "sequences" / "seq000001" / "files.sha256"
     hashes.write_text(hashes.read_text() + "garbage\n")
     result = _evids("verify", str(out))
-    assert result.returncode == 1 and "corrupt: seq000001 (files.sha256 (line" in result.stdout and "Traceback" not in result.stderr
+    assert (result.returncode == 1 and "corrupt: seq000001 (files.sha256 (line" in result.stdout
+            and "Traceback" not in result.stderr)
     manifest = json.loads((out / "manifest.json").read_text())
     del manifest["sequences"]
     (out / "manifest.json").write_text(json.dumps(manifest))

@@ -66,7 +66,7 @@ def test_fixture_command_is_byte_stable(tmp_path):
 
 USER_TEST = '''
 import json
-from evids.data import antiuav, coco, mot
+from simulator.formats import antiuav, coco, mot
 
 
 def test_mmuav(evids_mmuav_sequence):

@@ -78,5 +78,6 @@ def test_trident_single_clip_label_is_refused():
 
 def test_optional_dependency_named_at_start():
     require_module("json", "anything", "n/a")
-    with pytest.raises(UserInputError, match="evids demo --detection needs the Python package 'no_such_mod_x'.*--no-deps"):
+    with pytest.raises(UserInputError,
+                       match="evids demo --detection needs the Python package 'no_such_mod_x'.*--no-deps"):
         require_module("no_such_mod_x", "evids demo --detection", "pip install --no-deps trackeval==1.3.0")

@@ -41,7 +41,10 @@ def test_pink_noise_spectrum_slope_is_minus_3db_per_octave():
     n = degradations.apply("audio.pink_noise", x, seed=0, snr_db=0.0) - x
     p = np.abs(np.fft.rfft(n)) ** 2
     f = np.arange(p.size)
-    band = lambda lo: p[(f >= lo) & (f < 2 * lo)].mean()
+
+    def band(lo):
+        return p[(f >= lo) & (f < 2 * lo)].mean()
+
     slope = 10 * np.log10(band(4000) / band(2000))
     assert slope == pytest.approx(-3.01, abs=0.5)
 
@@ -65,7 +68,10 @@ def test_bandlimit_removes_out_of_band_energy():
     y = degradations.apply("audio.bandlimit", x, seed=0, low_cut_hz=300.0, high_cut_hz=2500.0,
                            meta={"sample_rate_hz": SR})
     spec = np.abs(np.fft.rfft(y)) / (x.size / 2)
-    k = lambda hz: int(round(hz * x.size / SR))
+
+    def k(hz):
+        return int(round(hz * x.size / SR))
+
     assert spec[k(1000)] > 0.9 and spec[k(6000)] < 0.01
 
 

@@ -37,19 +37,22 @@ TS = np.arange(T) / FPS
 def test_errors_name_field_path_and_value():
     bad = {"degradations": [{"name": "video.gaussian_noise", "severity": 9},
                             {"name": "audio.white_noise", "params": {"snr": 3}},
-                            {"name": "video.fog", "schedule": {"kind": "step", "events": [{"onset_s": -1, "duration_s": 1}]}}],
+                            {"name": "video.fog",
+                             "schedule": {"kind": "step", "events": [{"onset_s": -1, "duration_s": 1}]}}],
            "programs": [{"name": "ir_blind", "onset_s": 1.0}], "colour": 1}
     with pytest.raises(SpecError) as ei:
         parse_spec(bad)
     msg = str(ei.value)
-    for part in ("degradations[0].severity", "(got 9)", "degradations[1]", "snr", "degradations[2].schedule.events[0].onset_s",
+    for part in ("degradations[0].severity", "(got 9)", "degradations[1]", "snr",
+                 "degradations[2].schedule.events[0].onset_s",
                  "(got -1)", "programs[0]", "colour"):
         assert part in msg, (part, msg)
     assert isinstance(ei.value, ValueError)
 
 
 def test_load_yaml_and_json(tmp_path):
-    data = {"degradations": [{"name": "video.fog", "severity": 2}], "programs": [{"name": "decoy", "onset_s": 0.5, "duration_s": 1}]}
+    data = {"degradations": [{"name": "video.fog", "severity": 2}],
+            "programs": [{"name": "decoy", "onset_s": 0.5, "duration_s": 1}]}
     (tmp_path / "s.json").write_text(json.dumps(data))
     (tmp_path / "s.yaml").write_text("degradations:\n  - name: video.fog\n    severity: 2\nprograms:\n"
                                      "  - {name: decoy, onset_s: 0.5, duration_s: 1}\n")
@@ -82,7 +85,8 @@ def test_conflict_programs_label_exact_rows(program, hit):
         np.testing.assert_array_equal(changed[(t_el < 1.0) | (t_el >= 1.8)], False)
         assert changed[(t_el >= 1.0) & (t_el < 1.8)].mean() > 0.9
     if program == "decoy":
-        assert np.isfinite(rec["meta"]["rgb_decoy_boxes"][12]).all() and np.isnan(rec["meta"]["rgb_decoy_boxes"][0]).all()
+        assert (np.isfinite(rec["meta"]["rgb_decoy_boxes"][12]).all()
+                and np.isnan(rec["meta"]["rgb_decoy_boxes"][0]).all())
 
 
 def test_apply_spec_deterministic_and_stages_do_not_shift_streams():
@@ -104,7 +108,8 @@ def test_apply_spec_deterministic_and_stages_do_not_shift_streams():
 
 def test_ramp_record_and_audio_segments():
     spec = parse_spec({"degradations": [{"name": "audio.white_noise",
-                                         "schedule": {"kind": "ramp", "start_s": 1.0, "end_s": 2.0, "to_severity": 5}}]})
+                                         "schedule": {"kind": "ramp", "start_s": 1.0, "end_s": 2.0,
+                                                      "to_severity": 5}}]})
     s = _streams()
     out, rec = apply_spec(spec, {"audio": s["audio"]}, META, seed=0, t_s=TS)
     sev = np.array(rec["severity"]["audio"])
@@ -117,7 +122,8 @@ def test_ramp_record_and_audio_segments():
 
 def test_dropout_missing_flag_and_torch_streams():
     spec = parse_spec({"degradations": [{"name": "crossmodal.dropout", "stream": "thermal",
-                                         "schedule": {"kind": "step", "events": [{"onset_s": 0.5, "duration_s": 0.5}]}}]})
+                                         "schedule": {"kind": "step",
+                                                      "events": [{"onset_s": 0.5, "duration_s": 0.5}]}}]})
     s = _streams()
     out, rec = apply_spec(spec, {"thermal": torch.from_numpy(s["thermal"])}, META, seed=0, t_s=TS)
     assert isinstance(out["thermal"], torch.Tensor)

@@ -131,7 +131,8 @@ def test_ds_associative(alphas, construction):
 
 
 @settings(max_examples=60, deadline=None)
-@given(_alpha_strategy(1), st.sampled_from(["canonical", "scaled"]), st.sampled_from(["dempster_shafer", "yager", "cumulative"]))
+@given(_alpha_strategy(1), st.sampled_from(["canonical", "scaled"]),
+       st.sampled_from(["dempster_shafer", "yager", "cumulative"]))
 def test_vacuous_is_identity(alphas, construction, rule):
     a = alphas[0:1]
     vac = torch.ones_like(a)

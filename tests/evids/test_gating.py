@@ -115,7 +115,8 @@ def _cached(seed=0, m=3, clips=6, steps=20):
     strength = 10 ** (torch.rand(m, n, 1, generator=gen, dtype=torch.float64) * 2)
     right = torch.rand(m, n, generator=gen) < 0.8
     target = torch.where(right, labels, 1 - labels)
-    alphas = 1 + strength * torch.nn.functional.one_hot(target, 2).double() + torch.rand(m, n, 2, generator=gen, dtype=torch.float64)
+    alphas = 1 + strength * torch.nn.functional.one_hot(target, 2).double() + torch.rand(m, n, 2, generator=gen,
+                                                                                         dtype=torch.float64)
     ids = np.repeat(np.arange(clips), steps)
     return alphas, labels.numpy(), ids
 
@@ -135,7 +136,8 @@ def test_sweep_table():
     rows = sweep_gates(alphas, labels, tau_high=[0.3, 1.0], tau_low=[0.05, 0.3], n=[1, 3], sequence_ids=ids)
     # (0.3, 0.3) is skipped (tau_low must be < tau_high): 2 * 2 * 2 - 2 rows
     assert len(rows) == 6
-    assert {"tau_high", "tau_low", "n", "accuracy", "skip_rate", "skip_rate_per_modality", "abstain_rate"} <= set(rows[0])
+    assert {"tau_high", "tau_low", "n", "accuracy", "skip_rate", "skip_rate_per_modality",
+            "abstain_rate"} <= set(rows[0])
     full = dempster_shafer(alphas).p.argmax(-1).numpy()
     never = [r for r in rows if r["tau_high"] == 1.0]
     for r in never:  # u never exceeds 1: identical to ungated DS

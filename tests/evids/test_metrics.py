@@ -220,7 +220,8 @@ def test_state_accuracy_both_variants_hand():
         state_accuracy(pred[:3], gt, exist)
 
 
-@pytest.mark.skipif(importlib.util.find_spec("motmetrics") is None, reason="optional dependency motmetrics not installed")
+@pytest.mark.skipif(importlib.util.find_spec("motmetrics") is None,
+                    reason="optional dependency motmetrics not installed")
 def test_mot_metrics_hand():
     box = [[0, 0, 10, 10]]
     # 4 frames, 1 GT track; hypothesis: frame 0-1 id 7, frame 2 missed, frame 3 id 8 (switch)

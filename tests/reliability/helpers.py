@@ -10,7 +10,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def evids(*args: str, cwd: Path | None = None, timeout: float = 600, env: dict | None = None) -> subprocess.CompletedProcess:
+def evids(*args: str, cwd: Path | None = None, timeout: float = 600,
+          env: dict | None = None) -> subprocess.CompletedProcess:
     """`evids ARGS` in a fresh interpreter with this tree first on the path."""
     full_env = {**os.environ, "PYTHONPATH": str(ROOT), **(env or {})}
     full_env.pop("EVIDS_DEBUG", None)

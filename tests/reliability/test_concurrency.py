@@ -66,7 +66,8 @@ def test_a_second_writer_refuses_while_the_first_finishes_intact(config, tmp_pat
     out = tmp_path / "ds"
     first = _start(config, out, uuid.uuid4().hex)
     try:
-        _wait(lambda: (out / LOCK_FILE).is_file() and (out / LOCK_FILE).read_text().strip(), 120, "the first run's lock")
+        _wait(lambda: (out / LOCK_FILE).is_file() and (out / LOCK_FILE).read_text().strip(), 120,
+              "the first run's lock")
         assert json.loads((out / LOCK_FILE).read_text())["pid"] == first.pid
         second = evids("generate", config, "--out", out, "--seed", "3", "--quiet")
         assert second.returncode == 2, second.stderr

@@ -189,7 +189,8 @@ def test_degrade_output_is_marked_complete_and_replaced_only_with_overwrite(data
     code, err = run(capsys, "degrade", dataset / "sequences", "--spec", spec, "--out", tmp_path / "deg")
     assert code == 2 and "--overwrite" in err
     first = tree_digest(tmp_path / "deg")
-    assert run(capsys, "degrade", dataset / "sequences", "--spec", spec, "--out", tmp_path / "deg", "--overwrite")[0] == 0
+    assert run(capsys, "degrade", dataset / "sequences", "--spec", spec, "--out", tmp_path / "deg",
+               "--overwrite")[0] == 0
     assert tree_digest(tmp_path / "deg") == first  # same seed: byte-identical
     assert sorted(p.name for p in (tmp_path / "deg").iterdir()) == ["seq000001", "seq000002"]
 

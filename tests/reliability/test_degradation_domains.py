@@ -75,18 +75,40 @@ PARAMS = sorted((name, p) for name, cls in degradations.REGISTRY.items()
                 for p in list(cls.table) + list(cls.extra) if p in PARAM_DOMAINS or p in cls.domains)
 
 
+def _accepted(cls, p: str, value) -> bool:
+    try:
+        cls(None, **{p: value})
+    except DegradationError as exc:
+        assert p in str(exc) or "must" in str(exc)
+        return False
+    return True
+
+
 @settings(max_examples=300, deadline=None)
-@given(st.sampled_from(PARAMS), st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**9, 10**9)))
-def test_a_value_is_accepted_exactly_inside_its_domain(name_param, value):
+@given(st.sampled_from(PARAMS), st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**9, 10**9)),
+       st.floats(0.0, 1.0))
+def test_a_value_is_accepted_exactly_inside_its_domain(name_param, value, t):
+    """Outside the domain (or not finite) is refused; inside is accepted: the random value when it
+    happens to fall inside, and always a value drawn inside [lo, hi] (a whole number for integer
+    parameters), so both halves are checked on every example."""
     name, p = name_param
     cls = degradations.REGISTRY[name]
     lo, hi = cls.domains.get(p, PARAM_DOMAINS[p])
-    inside = math.isfinite(float(value)) and lo <= float(value) <= hi
-    try:
-        cls(None, **{p: value})
-        accepted = True
-    except DegradationError as exc:
-        accepted = False
-        assert p in str(exc) or "must" in str(exc)
-    if not inside:
-        assert not accepted, f"{name}.{p}={value!r} outside [{lo}, {hi}] was accepted"
+    whole = p in cls.integer_params
+    inside = math.isfinite(float(value)) and lo <= float(value) <= hi and (not whole or float(value).is_integer())
+    if inside:
+        assert _accepted(cls, p, value), f"{name}.{p}={value!r} inside [{lo}, {hi}] was refused"
+    elif not (math.isfinite(float(value)) and lo <= float(value) <= hi):
+        assert not _accepted(cls, p, value), f"{name}.{p}={value!r} outside [{lo}, {hi}] was accepted"
+    drawn = min(max(lo + t * (hi - lo), lo), hi)
+    if whole:
+        drawn = int(min(max(math.floor(drawn), math.ceil(lo)), math.floor(hi)))
+    assert _accepted(cls, p, drawn), f"{name}.{p}={drawn!r} inside [{lo}, {hi}] was refused"
+
+
+@pytest.mark.parametrize("name,p", PARAMS, ids=[f"{n}.{p}" for n, p in PARAMS])
+def test_both_ends_of_every_domain_are_accepted(name, p):
+    cls = degradations.REGISTRY[name]
+    lo, hi = cls.domains.get(p, PARAM_DOMAINS[p])
+    ends = [math.ceil(lo), math.floor(hi)] if p in cls.integer_params else [lo, hi]
+    assert [v for v in ends if not _accepted(cls, p, v)] == []

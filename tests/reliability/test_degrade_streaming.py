@@ -42,7 +42,8 @@ def write_sequence(folder: Path, n_frames: int, width: int = 320, height: int = 
         cv2.imwrite(str(folder / "masks" / "rgb" / name), mask)
         cv2.imwrite(str(folder / "masks" / "thermal" / name), mask)
         box = [c, 100, 12, 10]
-        frames.append({"index": i, "time_s": round(i / 30.0, 6), "rgb": [{"id": 1, "name": "drone", "exist": 1, "box": box}],
+        frames.append({"index": i, "time_s": round(i / 30.0, 6),
+                       "rgb": [{"id": 1, "name": "drone", "exist": 1, "box": box}],
                        "thermal": [{"id": 1, "name": "drone", "exist": 1, "box": box}]})
     (folder / "labels.json").write_text(json.dumps({"objects": [{"id": 1, "name": "drone"}], "frames": frames}))
     (folder / "meta.json").write_text(json.dumps({

@@ -29,9 +29,11 @@ def _with(path: str, value):
 REFUSED = [
     ("unknown noise parameter", _with("protocol.audio", [{"name": "audio.white_noise", "params": {"snrdb": 5}}]),
      "protocol.audio[0]"),
-    ("noise parameter out of domain", _with("protocol.video", [{"name": "video.gaussian_noise", "params": {"sigma": -1}}]),
+    ("noise parameter out of domain",
+     _with("protocol.video", [{"name": "video.gaussian_noise", "params": {"sigma": -1}}]),
      "sigma"),
-    ("audio degradation listed under video", _with("protocol.video", [{"name": "audio.white_noise"}]), "acts on 'audio'"),
+    ("audio degradation listed under video", _with("protocol.video", [{"name": "audio.white_noise"}]),
+     "acts on 'audio'"),
     ("negative noise seed", _with("protocol.noise_seeds", [-1]), "protocol.noise_seeds[0]"),
     ("seed beyond 32 bits", _with("protocol.noise_seeds", [2 ** 40]), "protocol.noise_seeds[0]"),
     ("unknown sweep degradation", _with("sweep.video", "video.nope"), "sweep.video"),
@@ -40,7 +42,8 @@ REFUSED = [
     ("gate threshold above 1", _with("gate.tau_high", [1.5]), "gate.tau_high[0]"),
     ("empty gate grid", _with("gate.tau_low", []), "gate.tau_low"),
     ("sweep seeds beyond the noise seeds", _with("sweep.n_seeds", 9), "sweep.n_seeds"),
-    ("dataset folder missing", {**copy.deepcopy(QUICK_CONFIG), "dataset": {"path": "/nonexistent/evids"}}, "dataset.path"),
+    ("dataset folder missing", {**copy.deepcopy(QUICK_CONFIG), "dataset": {"path": "/nonexistent/evids"}},
+     "dataset.path"),
 ]
 
 

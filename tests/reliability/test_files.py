@@ -20,6 +20,7 @@ from simulator.files import (
     MARKER_FILE,
     DatasetLock,
     atomic_folder,
+    atomic_path,
     check_output,
     clean_dead_temps,
     copy_tree_no_symlinks,
@@ -57,13 +58,15 @@ CASES = [
     ("a parent of the current folder", lambda t: (Path(".."), []), True, True, "current folder"),
     ("the root", lambda t: (Path("/"), []), True, True, "current folder or one of its parents|root"),
     ("equal to the input", lambda t: (_evids_folder(t / "d"), [t / "d"]), True, False, "is the input"),
-    ("ancestor of the input", lambda t: (t / "d", [_evids_folder(t / "d" / "sequences")]), True, False, "contains the input"),
+    ("ancestor of the input", lambda t: (t / "d", [_evids_folder(t / "d" / "sequences")]), True, False,
+     "contains the input"),
     ("descendant of the input", lambda t: (t / "d" / "sequences" / "x", [_evids_folder(t / "d" / "sequences")]), True,
      False, "inside the input"),
     ("a file", lambda t: ((t / "f").write_text("x") and t / "f", []), True, False, "not a folder"),
     ("a symlink to a user folder", lambda t: ((t / "l").symlink_to(_user_folder(t / "u")) or t / "l", []), True, False,
      "symbolic link"),
-    ("only a stale lock inside", lambda t: ((t / "s").mkdir() or (t / "s" / LOCK_FILE).write_text("{}") and t / "s", []),
+    ("only a stale lock inside",
+     lambda t: ((t / "s").mkdir() or (t / "s" / LOCK_FILE).write_text("{}") and t / "s", []),
      False, False, None),
 ]
 
@@ -102,6 +105,52 @@ def test_atomic_folder_replaces_its_own_output_only_when_asked_and_marks_it(tmp_
         (tmp / "v").write_text("3")
     assert (target / "v").read_text() == "3"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_atomic_path_publishes_only_a_complete_file_and_keeps_the_suffix(tmp_path):
+    import numpy as np
+
+    target = tmp_path / "sub" / "arrays.npz"
+    with atomic_path(target, suffix=".npz") as tmp:
+        assert tmp.parent == target.parent and tmp.name.startswith(".arrays.npz.tmp-") and tmp.suffix == ".npz"
+        np.savez_compressed(tmp, a=np.arange(3))  # adds no second ".npz": the suffix is already there
+        assert not target.exists()
+    assert np.load(target)["a"].tolist() == [0, 1, 2]
+    assert sorted(p.name for p in target.parent.iterdir()) == ["arrays.npz"]
+
+
+def test_torch_save_through_atomic_path_is_byte_identical_to_a_direct_save(tmp_path):
+    """torch.save names the archive inside the file after the file name: the temporary's name
+    must not leak into the bytes (models.pt is byte-identical run to run)."""
+    import torch
+
+    state = {"w": torch.arange(4.0)}
+    torch.save(state, tmp_path / "direct.pt.tmp-1234")   # how models.pt was written before the helper
+    (tmp_path / "direct.pt.tmp-1234").rename(tmp_path / "direct.pt")
+    (tmp_path / "a").mkdir()
+    with atomic_path(tmp_path / "a" / "direct.pt", hidden=False) as tmp:
+        torch.save(state, tmp)
+    assert (tmp_path / "a" / "direct.pt").read_bytes() == (tmp_path / "direct.pt").read_bytes()
+
+
+def test_atomic_path_leaves_the_old_file_untouched_and_no_temporary_on_failure(tmp_path):
+    target = tmp_path / "run.json"
+    target.write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_path(target) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("writer crashed")
+    assert target.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["run.json"]
+
+
+def test_no_rename_into_place_outside_the_atomic_write_helper():
+    """Every file is published through simulator.files (write_atomic / atomic_path / atomic_folder)."""
+    root = Path(__file__).resolve().parents[2]
+    offenders = [f"{p.relative_to(root)}:{n}" for pkg in ("scenes", "simulator", "degradations", "evids")
+                 for p in sorted((root / pkg).rglob("*.py")) if p != root / "simulator" / "files.py"
+                 for n, line in enumerate(p.read_text().splitlines(), 1)
+                 if "os.replace(" in line or "tmp.replace(" in line]
+    assert offenders == []
 
 
 def test_marker_and_lock_are_not_content(tmp_path):

@@ -29,7 +29,8 @@ from scenes.assets import (
 
 MULTIROTORS = ("quadcopter", "hexacopter")
 WINGED = ("fixed_wing", "bird", "airliner")
-TYPICAL_SIZE = {"quadcopter": 0.45, "hexacopter": 1.0, "fixed_wing": 2.0, "bird": 0.8, "airliner": 35.0, "helicopter": 10.0}
+TYPICAL_SIZE = {"quadcopter": 0.45, "hexacopter": 1.0, "fixed_wing": 2.0, "bird": 0.8, "airliner": 35.0,
+                "helicopter": 10.0}
 
 
 def _all_vertices(parts: list[MeshPart]) -> np.ndarray:

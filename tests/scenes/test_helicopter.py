@@ -57,6 +57,7 @@ def test_timeline_rotor_and_temperatures():
     scene = load_scenario("helicopter_pass")
     tl = build_timeline(scene, 5, 10)
     track = tl.targets[0]
-    assert track.n_blades == 4 and np.allclose(track.rotor_rpm, 400.0, rtol=0.03) and np.ptp(track.rotor_rpm) == 0  # governed, 1 % detune
+    assert (track.n_blades == 4 and np.allclose(track.rotor_rpm, 400.0, rtol=0.03)
+            and np.ptp(track.rotor_rpm) == 0)  # governed, 1 % detune
     temps = {r: float(v[0]) for r, v in track.part_temperature_k.items()}
     assert max(temps, key=temps.get) == "exhaust" and temps["exhaust"] > temps["engine"] > temps["fuselage"]

@@ -33,7 +33,8 @@ def test_terrain_is_off_by_default_in_existing_presets():
 
 
 def test_terrain_mesh_is_deterministic_and_front_faces_face_the_vertex_normals():
-    scene = scenario_from_dict(_scene(ground="field", relief_m=3.0, procedural={"tree_lines": [2, 4], "buildings": [1, 3], "masts": [1, 1]}))
+    scene = scenario_from_dict(_scene(ground="field", relief_m=3.0,
+                                      procedural={"tree_lines": [2, 4], "buildings": [1, 3], "masts": [1, 1]}))
     a = build_terrain(scene, np.random.default_rng(5))
     b = build_terrain(scene, np.random.default_rng(5))
     c = build_terrain(scene, np.random.default_rng(6))

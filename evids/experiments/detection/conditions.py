@@ -44,7 +44,8 @@ class StreamMaps:
 
 
 @torch.no_grad()
-def run_model(model: torch.nn.Module, x: torch.Tensor | tuple[torch.Tensor, torch.Tensor], batch: int = 8) -> StreamMaps:
+def run_model(model: torch.nn.Module, x: torch.Tensor | tuple[torch.Tensor, torch.Tensor],
+              batch: int = 8) -> StreamMaps:
     """Evaluate a frozen detector over a sequence in batches of ``batch`` frames."""
     outs = []
     n = (x[0] if isinstance(x, tuple) else x).shape[0]
@@ -149,7 +150,8 @@ def fused_matched(rgb: StreamMaps, thermal: StreamMaps, rule: str, floor: float,
                     boxes.append(b["boxes"][j])
         if not boxes:
             frames.append(FrameDetections.empty())
-            decoded.append({"boxes": np.zeros((0, 4)), "scores": np.zeros(0), "unc": np.zeros(0), "conflict": np.zeros(0)})
+            decoded.append({"boxes": np.zeros((0, 4)), "scores": np.zeros(0), "unc": np.zeros(0),
+                            "conflict": np.zeros(0)})
             continue
         al = torch.tensor([alphas_r, alphas_t], dtype=torch.float64)
         m = torch.tensor(avail).T
@@ -171,7 +173,8 @@ def frame_vacuity(maps: StreamMaps) -> np.ndarray:
     return maps.vacuity.reshape(t, -1)[torch.arange(t), flat].numpy().astype(np.float64)
 
 
-def gate_mask(u_rgb: np.ndarray, u_th: np.ndarray, tau_high: float, tau_low: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+def gate_mask(u_rgb: np.ndarray, u_th: np.ndarray, tau_high: float, tau_low: float,
+              n: int) -> tuple[np.ndarray, np.ndarray]:
     """Offline window-form hysteresis gate (evids.gating) over one sequence; returns (fused mask
     (T, 2), evaluated mask (T, 2)). At least one stream is fused at every frame."""
     from evids.gating import GateParams, HysteresisGate

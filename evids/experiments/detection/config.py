@@ -60,12 +60,16 @@ class StreamDegradations(_Model):
 
 
 class DataConfig(_Model):
-    root: str = Field(default="data", description="where generated datasets are cached, relative to the run folder's parent unless absolute")
+    root: str = Field(default="data",
+                      description="where generated datasets are cached, relative to the run folder's parent unless "
+                                  "absolute")
     train: DatasetSource
     test: dict[str, DatasetSource] = Field(min_length=1)
     degradations: dict[str, StreamDegradations] = Field(
         default_factory=dict, description="scene tag (preset name without det_ and _a/_b) -> load-time degradations")
-    thermal_netd_noise: bool = Field(default=True, description="add temporal NETD noise (sigma = camera netd_k) at load, unless the dataset was rendered with the camera model")
+    thermal_netd_noise: bool = Field(default=True,
+                                     description="add temporal NETD noise (sigma = camera netd_k) at load, unless the "
+                                                 "dataset was rendered with the camera model")
 
 
 class TrainConfig(_Model):
@@ -76,8 +80,10 @@ class TrainConfig(_Model):
     steps: int = Field(default=400, ge=1, le=100_000)
     lr: float = Field(default=3e-3, gt=0.0, le=1.0)
     weight_decay: float = Field(default=1e-4, ge=0.0)
-    anneal_fraction: float = Field(default=0.5, gt=0.0, le=1.0, description="EDL KL weight reaches 1 at this fraction of steps")
-    target_crop_fraction: float = Field(default=0.7, ge=0.0, le=1.0, description="share of crops that contain the target")
+    anneal_fraction: float = Field(default=0.5, gt=0.0, le=1.0,
+                                   description="EDL KL weight reaches 1 at this fraction of steps")
+    target_crop_fraction: float = Field(default=0.7, ge=0.0, le=1.0,
+                                        description="share of crops that contain the target")
     threads: int = Field(default=2, ge=1, le=64)
     workers: int = Field(default=1, ge=1, le=16, description="train models in this many processes (1 thread each)")
 
@@ -107,7 +113,8 @@ class GateConfig(_Model):
 class BootstrapConfig(_Model):
     seed: int = Field(default=0, ge=0)
     n_resamples: int = Field(default=2000, ge=100, le=100_000, description="paired per-sequence comparisons")
-    n_resamples_uauc: int = Field(default=300, ge=50, le=100_000, description="UAUC / Spearman CIs (tens of thousands of rows each)")
+    n_resamples_uauc: int = Field(default=300, ge=50, le=100_000,
+                                  description="UAUC / Spearman CIs (tens of thousands of rows each)")
 
 
 class DetectionConfig(_Model):
@@ -160,7 +167,8 @@ FULL_CONFIG: dict[str, Any] = {
 
 DEMO_CONFIG: dict[str, Any] = {
     "name": "detection_demo",
-    "data": {"root": "detection_data", "train": {"generate": "detection_train", "seed": 0, "sequences": 16, "frames": 16},
+    "data": {"root": "detection_data",
+             "train": {"generate": "detection_train", "seed": 0, "sequences": 16, "frames": 16},
              "test": {s: {"generate": f"detection_test_{s}", "seed": 0, "sequences": 3, "frames": 16}
                       for s in ("control", "crossover", "lowlight")},
              "degradations": _DEGRADATIONS},

@@ -19,8 +19,9 @@ import numpy as np
 import torch
 
 from scenes.errors import UserInputError
+from simulator.seeding import STREAMS
 
-DETECTION_STREAM = 1600  # SeedSequence stream id of this experiment (outside simulator.seeding's 1-7)
+DETECTION_STREAM = STREAMS["detection"]  # SeedSequence stream id of this experiment
 THERMAL_SCALE_K = 1.0    # thermal input = (T - frame median) / 1 K, clipped to +-8
 
 
@@ -48,7 +49,7 @@ class SequenceData:
     split: str
     set_name: str
     tag: str
-    rgb: np.ndarray                 # (T, H, W, 3) float16 in [0, 1], after load-time degradations (float16 halves memory)
+    rgb: np.ndarray                 # (T, H, W, 3) float16 in [0, 1], after load-time degradations (halves memory)
     thermal_k: np.ndarray           # (T, H, W) float32 kelvin, after NETD noise
     boxes_rgb: list[np.ndarray]     # per frame (n, 4) drone boxes [x, y, w, h]
     boxes_thermal: list[np.ndarray]
@@ -82,7 +83,8 @@ def dataset_entries(path: Path, need_splits: tuple[str, ...], field_name: str) -
         raise UserInputError(f"{field_name}: dataset {str(path)!r} holds no sequences")
     for split in need_splits:
         if not any(e["split"] == split for e in entries):
-            raise UserInputError(f"{field_name}: dataset {str(path)!r} has no {split!r} split (needed: {', '.join(need_splits)})")
+            raise UserInputError(f"{field_name}: dataset {str(path)!r} has no {split!r} split (needed: "
+                                 f"{', '.join(need_splits)})")
     first = Path(entries[0]["path"])
     meta = json.loads((first / "meta.json").read_text()) if (first / "meta.json").is_file() else {}
     if "thermal" not in meta.get("cameras", {}) or not (first / "thermal").is_dir():
@@ -99,7 +101,8 @@ def _registered(scenario: dict) -> bool:
     off = rig.get("thermal_offset", {}) or {}
     zero = all(abs(float(v)) < 1e-12 for v in off.get("translation_m", (0, 0, 0))) and all(
         abs(float(off.get(k, 0.0))) < 1e-12 for k in ("yaw_deg", "pitch_deg", "roll_deg"))
-    same = all(rig.get("rgb", {}).get(k) == rig.get("thermal", {}).get(k) for k in ("width_px", "height_px", "hfov_deg"))
+    same = all(rig.get("rgb", {}).get(k) == rig.get("thermal", {}).get(k)
+               for k in ("width_px", "height_px", "hfov_deg"))
     return bool(zero and same)
 
 
@@ -161,11 +164,13 @@ def load_sequence(entry: dict[str, Any], set_name: str, config, exp_seed: int, d
         boxes_th.append(np.array([x["box"] for x in t if x["exist"]], np.float64).reshape(-1, 4))
         gt_rgb.append(list(map(float, r[0]["box"])) if r and r[0]["exist"] else None)
         gt_th.append(list(map(float, t[0]["box"])) if t and t[0]["exist"] else None)
-        contrast.append(float(t[0]["contrast_k"]) if t and t[0]["exist"] and t[0].get("contrast_k") is not None else np.nan)
+        contrast.append(float(t[0]["contrast_k"]) if t and t[0]["exist"] and t[0].get("contrast_k") is not None
+                        else np.nan)
         ranges.append(float(r[0]["range_m"]) if r and r[0].get("range_m") is not None else 300.0)
     degs = config.data.degradations.get(tag)
     if degs is not None and degs.rgb:
-        rgb = np.clip(_apply_degradations(rgb, degs.rgb, base_seed, {"range_m": np.array(ranges)}, log, "rgb"), 0, 1).astype(np.float32)
+        rgb = np.clip(_apply_degradations(rgb, degs.rgb, base_seed, {"range_m": np.array(ranges)}, log, "rgb"), 0,
+                      1).astype(np.float32)
     # datasets rendered with the camera model (meta "sensor": {"sensor": "camera", ...}) already carry
     # NETD noise; only ideal or older renders get it here
     camera_noise = isinstance(meta.get("sensor"), dict) and meta["sensor"].get("sensor") == "camera"
@@ -181,7 +186,8 @@ def load_sequence(entry: dict[str, Any], set_name: str, config, exp_seed: int, d
     th_obs = np.array([g is not None and np.isfinite(c) and abs(c) >= netd for g, c in zip(gt_th, contrast_arr)])
     rgb_obs = np.array([rgb_observed(rgb[i], gt_rgb[i]) for i in range(n)])
     return SequenceData(name=entry["name"], index=int(entry["index"]), split=entry["split"], set_name=set_name, tag=tag,
-                        rgb=rgb.astype(np.float16), thermal_k=thermal, boxes_rgb=boxes_rgb, boxes_thermal=boxes_th, gt_rgb=gt_rgb,
+                        rgb=rgb.astype(np.float16), thermal_k=thermal, boxes_rgb=boxes_rgb, boxes_thermal=boxes_th,
+                        gt_rgb=gt_rgb,
                         gt_thermal=gt_th, contrast_k=contrast_arr, netd_k=netd, rgb_observed=rgb_obs,
                         thermal_observed=th_obs, registered=_registered(scenario), degradations=log)
 

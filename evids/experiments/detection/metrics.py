@@ -118,7 +118,8 @@ def write_mot_tracker(path: Path, boxes: list[list[float] | None], scores: list[
     path.write_text("".join(lines))
 
 
-def trackeval_mot(gt_root: Path, trackers_root: Path, benchmark: str, split: str, trackers: list[str]) -> dict[str, dict]:
+def trackeval_mot(gt_root: Path, trackers_root: Path, benchmark: str, split: str,
+                  trackers: list[str]) -> dict[str, dict]:
     """MOTA, IDF1, HOTA (combined and per sequence) of each tracker via trackeval."""
     import trackeval
 
@@ -129,7 +130,8 @@ def trackeval_mot(gt_root: Path, trackers_root: Path, benchmark: str, split: str
     ecfg = trackeval.Evaluator.get_default_eval_config()
     ecfg.update({"USE_PARALLEL": False, "PRINT_RESULTS": False, "PRINT_CONFIG": False, "TIME_PROGRESS": False,
                  "OUTPUT_SUMMARY": False, "OUTPUT_DETAILED": False, "PLOT_CURVES": False, "DISPLAY_LESS_PROGRESS": True,
-                 "OUTPUT_EMPTY_CLASSES": False, "LOG_ON_ERROR": None, "BREAK_ON_ERROR": True, "PRINT_ONLY_COMBINED": True})
+                 "OUTPUT_EMPTY_CLASSES": False, "LOG_ON_ERROR": None, "BREAK_ON_ERROR": True,
+                 "PRINT_ONLY_COMBINED": True})
     dataset = _mmuav_dataset_class()(dcfg)
     quiet = {"PRINT_CONFIG": False}
     metrics = [trackeval.metrics.HOTA(quiet), trackeval.metrics.CLEAR(quiet), trackeval.metrics.Identity(quiet)]
@@ -148,9 +150,9 @@ def trackeval_mot(gt_root: Path, trackers_root: Path, benchmark: str, split: str
 
 # -------------------------------------------------------------------------------------- Anti-UAV
 def antiuav_state_accuracy(label_file: Path, pred: list[list[float] | None]) -> dict[str, float]:
-    from simulator.formats.antiuav import read_antiuav_labels
+    from simulator.formats.antiuav import read_label_file
 
-    exist, rects = read_antiuav_labels(label_file)
+    exist, rects = read_label_file(label_file)
     return {v: state_accuracy(pred, [r if r is not None else [] for r in rects], exist, variant=v)
             for v in ("plain", "penalised")}
 
@@ -177,7 +179,8 @@ def paired_comparison(a: np.ndarray, b: np.ndarray, seed: int, n_resamples: int)
     if n < 2:
         return {"diff": float(np.mean(d)) if n else float("nan"), "ci_low": float("nan"), "ci_high": float("nan"),
                 "p": float("nan"), "mde": float("nan"), "n": n}
-    boot = clustered_bootstrap(np.mean, d, clusters=np.arange(n), rng=np.random.default_rng(seed), n_resamples=n_resamples)
+    boot = clustered_bootstrap(np.mean, d, clusters=np.arange(n), rng=np.random.default_rng(seed),
+                               n_resamples=n_resamples)
     gen = np.random.default_rng(seed + 1)
     if n <= 16:
         signs = ((np.arange(2 ** n)[:, None] >> np.arange(n)) & 1) * 2 - 1
@@ -190,7 +193,8 @@ def paired_comparison(a: np.ndarray, b: np.ndarray, seed: int, n_resamples: int)
             "mde": 2.8 * s / np.sqrt(n), "n": n}
 
 
-def clustered_uauc(unc: np.ndarray, is_error: np.ndarray, clusters: np.ndarray, seed: int, n_resamples: int) -> dict[str, float]:
+def clustered_uauc(unc: np.ndarray, is_error: np.ndarray, clusters: np.ndarray, seed: int,
+                   n_resamples: int) -> dict[str, float]:
     """UAUC with a sequence-clustered bootstrap CI (NaN when one class is missing)."""
     unc, is_error, clusters = np.asarray(unc, float), np.asarray(is_error, bool), np.asarray(clusters)
     n_err, n = int(is_error.sum()), int(is_error.size)
@@ -200,12 +204,14 @@ def clustered_uauc(unc: np.ndarray, is_error: np.ndarray, clusters: np.ndarray, 
     def stat(u, e):
         return uauc(u, e) if 0 < e.sum() < e.size else np.nan
 
-    boot = clustered_bootstrap(stat, unc, is_error, clusters=clusters, rng=np.random.default_rng(seed), n_resamples=n_resamples)
+    boot = clustered_bootstrap(stat, unc, is_error, clusters=clusters, rng=np.random.default_rng(seed),
+                               n_resamples=n_resamples)
     return {"uauc": boot.estimate, "ci_low": boot.ci_low, "ci_high": boot.ci_high, "n": n, "n_error": n_err,
             "n_clusters": boot.n_clusters}
 
 
-def spearman_clustered(x: np.ndarray, y: np.ndarray, clusters: np.ndarray, seed: int, n_resamples: int) -> dict[str, float]:
+def spearman_clustered(x: np.ndarray, y: np.ndarray, clusters: np.ndarray, seed: int,
+                       n_resamples: int) -> dict[str, float]:
     from scipy.stats import spearmanr
 
     x, y = np.asarray(x, float), np.asarray(y, float)
@@ -215,8 +221,10 @@ def spearman_clustered(x: np.ndarray, y: np.ndarray, clusters: np.ndarray, seed:
     def stat(a, b):
         return float(spearmanr(a, b).statistic) if np.ptp(a) > 0 and np.ptp(b) > 0 else np.nan
 
-    boot = clustered_bootstrap(stat, x, y, clusters=np.asarray(clusters), rng=np.random.default_rng(seed), n_resamples=n_resamples)
-    return {"rho": boot.estimate, "ci_low": boot.ci_low, "ci_high": boot.ci_high, "n": int(x.size), "n_clusters": boot.n_clusters}
+    boot = clustered_bootstrap(stat, x, y, clusters=np.asarray(clusters), rng=np.random.default_rng(seed),
+                               n_resamples=n_resamples)
+    return {"rho": boot.estimate, "ci_low": boot.ci_low, "ci_high": boot.ci_high, "n": int(x.size),
+            "n_clusters": boot.n_clusters}
 
 
 AREA_STRATA = (("small <200", 0.0, 200.0), ("medium 200-1000", 200.0, 1000.0), ("large >1000", 1000.0, float("inf")))

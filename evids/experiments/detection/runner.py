@@ -31,8 +31,10 @@ from evids.experiments.detection.config import CONDITIONS, DetectionConfig, load
 from evids.experiments.detection.data import SequenceData, crop_resize, dataset_entries, inputs, load_sequence
 from evids.experiments.detection.tracking import FrameDetections, run_tracker, tracking_on_absence
 from evids.experiments.detection.train import MODEL_IDS, build_model, train_model
-from evids.runfolder import mark_stage, write_csv, write_json
+from evids.runfolder import create_run_folder, mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
+from simulator.files import atomic_path, check_output
+from simulator.jobs import run_jobs
 
 Log = Callable[[str], None]
 
@@ -83,7 +85,8 @@ def check_inputs(cfg: DetectionConfig) -> None:
         if src.path is not None:
             dataset_entries(Path(src.path), ("test",), f"data.test.{name}.path")
     if cfg.crossover_set not in cfg.data.test:
-        raise UserInputError(f"crossover_set: {cfg.crossover_set!r} is not one of data.test ({', '.join(cfg.data.test)})")
+        raise UserInputError(f"crossover_set: {cfg.crossover_set!r} is not one of data.test "
+                             f"({', '.join(cfg.data.test)})")
 
 
 def _resolve(src, field: str, folder: Path, need: tuple[str, ...], log: Log) -> Path:
@@ -106,7 +109,8 @@ def resolve_data(cfg: DetectionConfig, run_dir: Path, log: Log, tests: bool) -> 
     train = _resolve(cfg.data.train, "data.train", folder, ("train", "val"), log)
     out: dict[str, Any] = {"train": str(train), "datasets": {"train": _identity(train)}}
     if tests:
-        found = {name: _resolve(src, f"data.test.{name}", folder, ("test",), log) for name, src in cfg.data.test.items()}
+        found = {name: _resolve(src, f"data.test.{name}", folder, ("test",), log)
+                 for name, src in cfg.data.test.items()}
         out["test"] = {n: str(t) for n, t in found.items()}
         out["datasets"].update({f"test.{n}": _identity(t) for n, t in found.items()})
     return out
@@ -120,7 +124,8 @@ def load_split(data: dict[str, Any], cfg: DetectionConfig, which: str) -> list[S
     """``which``: 'train', 'val' (from the training dataset) or 'test' (every test set)."""
     out = []
     if which in ("train", "val"):
-        entries = [e for e in dataset_entries(Path(data["train"]), ("train", "val"), "data.train") if e["split"] == which]
+        entries = [e for e in dataset_entries(Path(data["train"]), ("train", "val"), "data.train")
+                   if e["split"] == which]
         out += [load_sequence(e, which, cfg, cfg.train.seed, 0) for e in entries]
     else:
         for k, (name, path) in enumerate(sorted(data["test"].items())):
@@ -134,13 +139,17 @@ def train(config_source: str | Path | dict, run_dir: Path, log: Log = print) -> 
     cfg = load_detection_config(config_source)
     check_inputs(cfg)
     run_dir = Path(run_dir)
+    inputs = [Path(src.path) for src in (cfg.data.train, *cfg.data.test.values()) if src.path is not None]
+    if isinstance(config_source, (str, Path)) and Path(config_source).is_file():
+        inputs.append(Path(config_source))
+    check_output(run_dir, inputs=inputs, allow_resume=True)  # the safe-output rule, before any work
     if (run_dir / "config.json").exists():
         old = json.loads((run_dir / "config.json").read_text())
         if old != json.loads(cfg.model_dump_json()):
             raise UserInputError(f"--out: {str(run_dir)!r} holds a run of another config; choose a new folder")
     t0 = time.perf_counter()
     data = resolve_data(cfg, run_dir, log, tests=False)
-    run_dir.mkdir(parents=True, exist_ok=True)
+    create_run_folder(run_dir, inputs=inputs, kind="detection run")
     write_json(run_dir / "config.json", json.loads(cfg.model_dump_json()))
     torch.set_num_threads(cfg.train.threads)
     seqs = load_split(data, cfg, "train")
@@ -150,20 +159,16 @@ def train(config_source: str | Path | dict, run_dir: Path, log: Log = print) -> 
     todo = [n for n in models_needed(cfg.conditions) if not (run_dir / "models" / f"{n}.pt").is_file()]
     records = []
     if cfg.train.workers > 1 and len(todo) > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
-
         del seqs
         log(f"train: {len(todo)} models in {min(cfg.train.workers, len(todo))} processes")
-        with ProcessPoolExecutor(min(cfg.train.workers, len(todo)), mp_context=mp.get_context("spawn")) as pool:
-            futures = [pool.submit(_train_one, json.loads(cfg.model_dump_json()), data, n, str(run_dir)) for n in todo]
-            for f in futures:
-                records.append(f.result())
-                log(f"train: {records[-1]['name']} done in {records[-1]['seconds']} s")
+        records = run_jobs(_train_one, [(json.loads(cfg.model_dump_json()), data, n, str(run_dir)) for n in todo],
+                           workers=cfg.train.workers, start="spawn",
+                           progress=lambda i, rec: log(f"train: {rec['name']} done in {rec['seconds']} s"))
     else:
         for name in todo:
             model, rec = train_model(name, seqs, cfg.train, log)
-            torch.save(model.state_dict(), run_dir / "models" / f"{name}.pt")
+            with atomic_path(run_dir / "models" / f"{name}.pt", hidden=False) as tmp:
+                torch.save(model.state_dict(), tmp)
             records.append(rec)
     old = json.loads((run_dir / "train.json").read_text()) if (run_dir / "train.json").is_file() else {"models": []}
     write_json(run_dir / "train.json", {"models": old["models"] + records})
@@ -177,10 +182,8 @@ def _train_one(cfg_dict: dict, data: dict, name: str, run_dir: str) -> dict:
     torch.set_num_threads(1)
     seqs = load_split(data, cfg, "train")
     model, rec = train_model(name, seqs, cfg.train, None)
-    path = Path(run_dir) / "models" / f"{name}.pt"
-    tmp = path.with_suffix(".pt.tmp")
-    torch.save(model.state_dict(), tmp)
-    tmp.replace(path)
+    with atomic_path(Path(run_dir) / "models" / f"{name}.pt", hidden=False) as tmp:
+        torch.save(model.state_dict(), tmp)
     return rec
 
 
@@ -249,9 +252,11 @@ def condition_dets(seq: SequenceData, maps: dict[str, StreamMaps], cfg: Detectio
             dets[f"{c}/fused"] = single_stream(StreamMaps(torch.sigmoid(z), fm.box, None, z), floor, k)
     extra: dict[str, Any] = {"gate": gate_info}
     if "thermal_evidential" in maps:
-        extra["thermal_u_at_target"], extra["thermal_p_at_target"] = _at_target(maps["thermal_evidential"], seq.gt_thermal)
+        extra["thermal_u_at_target"], extra["thermal_p_at_target"] = _at_target(maps["thermal_evidential"],
+                                                                                seq.gt_thermal)
         extra["rgb_u_at_target"], extra["rgb_p_at_target"] = _at_target(maps["rgb_evidential"], seq.gt_rgb)
-        extra["frame_u"] = {"rgb": frame_vacuity(maps["rgb_evidential"]), "thermal": frame_vacuity(maps["thermal_evidential"])}
+        extra["frame_u"] = {"rgb": frame_vacuity(maps["rgb_evidential"]),
+                            "thermal": frame_vacuity(maps["thermal_evidential"])}
         if seq.registered:
             extra["ds_conflict_at_target"] = fuse_maps_at_target(maps, seq)[2]
     return {"dets": dets, "extra": extra}
@@ -281,7 +286,8 @@ def fuse_maps_at_target(maps: dict[str, StreamMaps], seq: SequenceData):
     out = np.full(seq.n_frames, np.nan)
     for t, g in enumerate(seq.gt_rgb):
         if g is not None:
-            out[t] = float(c[t, min(int((g[1] + g[3] / 2) // STRIDE), h - 1), min(int((g[0] + g[2] / 2) // STRIDE), w - 1)])
+            out[t] = float(c[t, min(int((g[1] + g[3] / 2) // STRIDE), h - 1), min(int((g[0] + g[2] / 2) // STRIDE),
+                                                                                  w - 1)])
     return p, u, out
 
 
@@ -290,14 +296,16 @@ def gt_of(seq: SequenceData, key: str) -> list:
 
 
 # ------------------------------------------------------------------------------------ fitting
-def _seq_state(frames: list[FrameDetections], gt: list, det_thr: float, theta: float, cfg, tau_det=None) -> tuple[float, list]:
+def _seq_state(frames: list[FrameDetections], gt: list, det_thr: float, theta: float, cfg,
+               tau_det=None) -> tuple[float, list]:
     from evids.experiments.detection.metrics import per_frame_state_values
 
     steps = run_tracker(frames, det_thr, theta, cfg.tracker.search_px, tau_det)
     return float(np.mean(per_frame_state_values([s.box for s in steps], gt))), steps
 
 
-def fit_tracking(val: list[tuple[SequenceData, dict]], key: str, cfg: DetectionConfig, tau_det_grid: bool = False) -> dict[str, float]:
+def fit_tracking(val: list[tuple[SequenceData, dict]], key: str, cfg: DetectionConfig,
+                 tau_det_grid: bool = False) -> dict[str, float]:
     """Grid search on val for the detection threshold and the tracker's switching threshold theta
     (and tau_det for condition (c)), maximising mean per-sequence state accuracy."""
     det_grid = [0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9]
@@ -320,12 +328,15 @@ def fit_tracking(val: list[tuple[SequenceData, dict]], key: str, cfg: DetectionC
     return best
 
 
-def fit_gate(val: list[tuple[SequenceData, dict]], val_maps: list[dict], cfg: DetectionConfig, track_fit: dict) -> dict[str, float]:
+def fit_gate(val: list[tuple[SequenceData, dict]], val_maps: list[dict], cfg: DetectionConfig,
+             track_fit: dict) -> dict[str, float]:
     """tau_high from the val distribution of per-frame stream vacuity: the quantile (grid) that
     maximises val state accuracy of (f), with (e)'s fitted tracking thresholds."""
     if cfg.gate.tau_high is not None:
-        return {"tau_high": cfg.gate.tau_high, "tau_low": cfg.gate.tau_high * cfg.gate.tau_low_fraction, "fitted_on": "config"}
-    u = np.concatenate([np.concatenate([o["extra"]["frame_u"]["rgb"], o["extra"]["frame_u"]["thermal"]]) for _, o in val])
+        return {"tau_high": cfg.gate.tau_high, "tau_low": cfg.gate.tau_high * cfg.gate.tau_low_fraction,
+                "fitted_on": "config"}
+    u = np.concatenate([np.concatenate([o["extra"]["frame_u"]["rgb"], o["extra"]["frame_u"]["thermal"]])
+                        for _, o in val])
     best = {"score": -1.0}
     for q in (0.5, 0.7, 0.8, 0.9, 0.95, 0.99):
         tau_high = float(min(np.quantile(u, q), 1.0))
@@ -405,12 +416,14 @@ def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, te
                            "thermal_p_at_target": ex.get("thermal_p_at_target", [np.nan] * seq.n_frames)[t],
                            "rgb_u_at_target": ex.get("rgb_u_at_target", [np.nan] * seq.n_frames)[t],
                            "rgb_p_at_target": ex.get("rgb_p_at_target", [np.nan] * seq.n_frames)[t],
-                           "ds_conflict_at_target": (ex.get("ds_conflict_at_target") if ex.get("ds_conflict_at_target") is not None
+                           "ds_conflict_at_target": (ex.get("ds_conflict_at_target")
+                                                     if ex.get("ds_conflict_at_target") is not None
                                                      else [np.nan] * seq.n_frames)[t]})
     if ex.get("gate") is not None:
         ev = ex["gate"]["evaluated"]
         per_seq.append({"set": seq.set_name, "sequence": video, "key": "_gate", "rgb_evaluated": float(ev[:, 0].mean()),
-                        "thermal_evaluated": float(ev[:, 1].mean()), "rgb_fused": float(ex["gate"]["fused"][:, 0].mean()),
+                        "thermal_evaluated": float(ev[:, 1].mean()),
+                        "rgb_fused": float(ex["gate"]["fused"][:, 0].mean()),
                         "thermal_fused": float(ex["gate"]["fused"][:, 1].mean())})
     for key in keys:
         if key not in out["dets"]:
@@ -420,10 +433,12 @@ def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, te
         f = fitted[key]
         steps = run_tracker(frames, f["det_threshold"], f["theta"], cfg.tracker.search_px, f.get("tau_det"))
         boxes_out = [s.box for s in steps]
-        M.write_mot_tracker(exports / "mot" / "trackers" / f"{'IR' if key.endswith('/thermal') else 'RGB'}-{seq.set_name}"
+        M.write_mot_tracker(exports / "mot" / "trackers" / f"{'IR' if key.endswith('/thermal') else 'RGB'}-"
+                                                           f"{seq.set_name}"
                             / _tracker_name(key) / "data" / f"{video}.txt", boxes_out, [s.score for s in steps],
                             [s.track_id for s in steps])
-        label_file = exports / "antiuav" / seq.set_name / (video if key.endswith("/thermal") else f"{video}_visible") / (
+        label_file = exports / "antiuav" / seq.set_name / (video if key.endswith("/thermal")
+                                                           else f"{video}_visible") / (
             "IR_label.json" if key.endswith("/thermal") else "visible.json")
         sa = M.antiuav_state_accuracy(label_file, boxes_out)
         vals = M.per_frame_state_values(boxes_out, gt)
@@ -439,7 +454,7 @@ def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, te
                         "tracker_share": float(np.mean([s.in_control == "tracker" for s in steps]))})
         coco_dets.setdefault(f"{seq.set_name}|{key}", []).extend(
             (video, t, fr.boxes, fr.scores) for t, fr in enumerate(frames))
-        for t, (fr, d) in enumerate(zip(frames, decoded)):
+        for t, (fr, _decoded) in enumerate(zip(frames, decoded)):
             all_gt = (seq.boxes_thermal if key.endswith("/thermal") else seq.boxes_rgb)[t]
             tp = M.detections_matched(fr.boxes, fr.scores, all_gt)
             for i in range(fr.boxes.shape[0]):
@@ -501,7 +516,8 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
 
     run_dir = Path(run_dir)
     if not (run_dir / "config.json").is_file() or not (run_dir / "data.json").is_file():
-        raise UserInputError(f"{run_dir}: not a detection run folder (no config.json/data.json); run `evids detect train` first")
+        raise UserInputError(f"{run_dir}: not a detection run folder (no config.json/data.json); run `evids detect "
+                             "train` first")
     cfg = load_detection_config(json.loads((run_dir / "config.json").read_text()))
     data = json.loads((run_dir / "data.json").read_text())
     t0 = time.perf_counter()
@@ -545,14 +561,15 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
         # full below: a rerun after an interrupted evaluate replaces its partial export instead of refusing it
         shutil.rmtree(exports)
     test_sets: dict[str, list[dict]] = {}
-    for k, (name, path) in enumerate(sorted(data["test"].items())):
+    for name, path in sorted(data["test"].items()):
         ents = [e for e in dataset_entries(Path(path), ("test",), f"data.test.{name}") if e["split"] == "test"]
         test_sets[name] = [{**e, "video": f"{name}_{e['name']}"} for e in ents]
     image_ids: dict[str, dict[str, int]] = {}
     for set_name, ents in test_sets.items():
         named = [{**e, "name": e["video"]} for e in ents]
         for modality in ("rgb", "ir"):
-            image_ids[f"{set_name}/{modality}"] = M.write_coco_gt(named, modality, exports / "coco" / f"{set_name}_{modality}.json")
+            image_ids[f"{set_name}/{modality}"] = M.write_coco_gt(named, modality,
+                                                                  exports / "coco" / f"{set_name}_{modality}.json")
         for camera, bench in (("rgb", "RGB"), ("thermal", "IR")):
             M.write_mot_gt(named, camera, exports / "mot" / "gt", f"{bench}-{set_name}")
         for e in ents:
@@ -562,20 +579,18 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
                for e in dataset_entries(Path(path), ("test",), f"data.test.{name}") if e["split"] == "test"]
     args = (json.loads(cfg.model_dump_json()), str(run_dir), gate, temperature, fitted, str(exports), keys)
     workers = min(cfg.train.workers, len(entries))
-    results = []
-    if workers > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
+    if workers <= 1:
+        _worker_init(*args[:2])  # in-process: the same per-process state a pool worker sets up
+    finished = [0]
 
-        with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"), initializer=_worker_init, initargs=args[:2]) as pool:
-            futures = [pool.submit(_evaluate_entry, args, name, k, e) for name, k, e in entries]
-            for i, f in enumerate(futures):
-                results.append(f.result())
-                if (i + 1) % 6 == 0 or i + 1 == len(futures):
-                    log(f"  {i + 1}/{len(futures)} test sequences")
-    else:
-        _worker_init(*args[:2])
-        results = [_evaluate_entry(args, name, k, e) for name, k, e in entries]
+    def tick(i: int, result: dict) -> None:
+        finished[0] += 1
+        if workers > 1 and (finished[0] % 6 == 0 or finished[0] == len(entries)):
+            log(f"  {finished[0]}/{len(entries)} test sequences")
+
+    results = run_jobs(_evaluate_entry, [(args, name, k, e) for name, k, e in entries], workers=workers,
+                       start="spawn" if workers > 1 else "inline", initializer=_worker_init, initargs=args[:2],
+                       progress=tick)
     per_seq = [r for res in results for r in res["per_seq"]]
     det_rows = [r for res in results for r in res["det_rows"]]
     crop_rows = [r for res in results for r in res["crop_rows"]]
@@ -586,7 +601,8 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
             coco_dets.setdefault(key, []).extend(v)
     example = next((res["example"] for res in results if res["example"] is not None), None)
     if example is not None:
-        np.savez_compressed(run_dir / "example_crossover.npz", **example)
+        with atomic_path(run_dir / "example_crossover.npz", suffix=".npz") as tmp:
+            np.savez_compressed(tmp, **example)
     write_csv(run_dir / "tables" / "per_sequence.csv", per_seq)
     write_csv(run_dir / "tables" / "detections.csv", det_rows)
     write_csv(run_dir / "tables" / "crops.csv", crop_rows)
@@ -613,8 +629,10 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
     write_json(run_dir / "tables" / "tools.json", {"ap50": ap50, "mot": mot})
     mark_stage(run_dir, "evaluate_conditions", time.perf_counter() - t0)
     log("evaluate: timing the gate (batch 1, real skipped forwards)")
-    timing_seqs = [load_sequence(e, name, cfg, cfg.train.seed, k) for name, k, e in entries if e["name"] in ("seq000001", "seq000002")]
-    write_json(run_dir / "tables" / "gate_timing.json", time_gating(timing_seqs, models, cfg, gate) if gate is not None else None)
+    timing_seqs = [load_sequence(e, name, cfg, cfg.train.seed, k) for name, k, e in entries
+                   if e["name"] in ("seq000001", "seq000002")]
+    write_json(run_dir / "tables" / "gate_timing.json", time_gating(timing_seqs, models, cfg, gate) if gate is not None
+               else None)
     log("evaluate: statistics")
     summary = summarise_run(run_dir)
     mark_stage(run_dir, "evaluate", time.perf_counter() - t0)
@@ -650,7 +668,8 @@ def summarise_run(run_dir: Path) -> dict[str, Any]:
     t = run_dir / "tables"
     tools = json.loads((t / "tools.json").read_text())
     fitted = json.loads((run_dir / "fitted.json").read_text())
-    summary = summarise(cfg, _read_rows(t / "per_sequence.csv"), _read_rows(t / "detections.csv"), _read_rows(t / "crops.csv"),
+    summary = summarise(cfg, _read_rows(t / "per_sequence.csv"), _read_rows(t / "detections.csv"),
+                        _read_rows(t / "crops.csv"),
                         _read_rows(t / "frames.csv"), tools["ap50"], tools["mot"], fitted["tracking"], fitted["gate"])
     summary["gate_timing"] = json.loads((t / "gate_timing.json").read_text())
     summary["headline"] = headline(summary, cfg)
@@ -731,8 +750,10 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
     for set_name in sets + ["all"]:
         for a, b in pairs:
             for field in ("state_acc", "acc_thermal_blind"):
-                ra = {r["sequence"]: r[field] for r in per_seq if r["key"] == a and (set_name == "all" or r["set"] == set_name)}
-                rb = {r["sequence"]: r[field] for r in per_seq if r["key"] == b and (set_name == "all" or r["set"] == set_name)}
+                ra = {r["sequence"]: r[field] for r in per_seq if r["key"] == a
+                      and (set_name == "all" or r["set"] == set_name)}
+                rb = {r["sequence"]: r[field] for r in per_seq if r["key"] == b
+                      and (set_name == "all" or r["set"] == set_name)}
                 common = sorted(set(ra) & set(rb))
                 if len(common) < 2:
                     continue
@@ -782,10 +803,12 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
                 ok = np.isfinite(u)
                 if ok.sum() == 0:
                     continue
-                unc.append({"level": "crop" if name != "anchor_u" else "anchor (same detections)", "key": f"b_evidential/{stream}",
+                unc.append({"level": "crop" if name != "anchor_u" else "anchor (same detections)",
+                            "key": f"b_evidential/{stream}",
                             "stratum": stratum, "score": name, **M.clustered_uauc(u[ok], err[ok], cl[ok], seed, nb_u)})
     # thermal vacuity against |dT| / NETD on frames with the target in the thermal frame
-    fr = [r for r in frame_rows if r["exist_thermal"] and np.isfinite(r["contrast_k"]) and np.isfinite(r["thermal_u_at_target"])]
+    fr = [r for r in frame_rows if r["exist_thermal"] and np.isfinite(r["contrast_k"])
+          and np.isfinite(r["thermal_u_at_target"])]
     vac = {}
     if fr:
         ratio = np.array([abs(r["contrast_k"]) / r["netd_k"] for r in fr])
@@ -796,8 +819,10 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
         vac["spearman_p"] = M.spearman_clustered(ratio, p, cl, seed, nb_u)
         bins = [0, 1, 2, 4, 8, 16, 1e9]
         vac["bins"] = [{"lo": lo, "hi": hi, "n": int(((ratio >= lo) & (ratio < hi)).sum()),
-                        "mean_u": float(u[(ratio >= lo) & (ratio < hi)].mean()) if ((ratio >= lo) & (ratio < hi)).any() else np.nan,
-                        "mean_p": float(p[(ratio >= lo) & (ratio < hi)].mean()) if ((ratio >= lo) & (ratio < hi)).any() else np.nan}
+                        "mean_u": float(u[(ratio >= lo) & (ratio < hi)].mean()) if ((ratio >= lo) & (ratio < hi)).any()
+                        else np.nan,
+                        "mean_p": float(p[(ratio >= lo) & (ratio < hi)].mean()) if ((ratio >= lo) & (ratio < hi)).any()
+                        else np.nan}
                        for lo, hi in zip(bins[:-1], bins[1:])]
         vac["points"] = {"ratio": ratio.tolist(), "u": u.tolist(), "set": [r["set"] for r in fr]}
     conflict = {}
@@ -805,7 +830,8 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
         c = np.array([r["ds_conflict_at_target"] for r in frame_rows if r["set"] == set_name and r["exist"]], float)
         c = c[np.isfinite(c)]
         if c.size:
-            conflict[set_name] = {"mean": float(c.mean()), "p90": float(np.quantile(c, 0.9)), "max": float(c.max()), "n": int(c.size)}
+            conflict[set_name] = {"mean": float(c.mean()), "p90": float(np.quantile(c, 0.9)), "max": float(c.max()),
+                                  "n": int(c.size)}
     obs = {}
     for set_name in sets:
         rows = [r for r in frame_rows if r["set"] == set_name and r["exist"]]
@@ -814,7 +840,8 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
                          "absent_frames": sum(1 for r in frame_rows if r["set"] == set_name and not r["exist"]),
                          "sequences": len({r["sequence"] for r in frame_rows if r["set"] == set_name})}
     gate_rows = [r for r in per_seq if r["key"] == "_gate"]
-    gate_usage = {k: _mean(gate_rows, k) for k in ("rgb_evaluated", "thermal_evaluated", "rgb_fused", "thermal_fused")} if gate_rows else None
+    gate_usage = {k: _mean(gate_rows, k)
+                  for k in ("rgb_evaluated", "thermal_evaluated", "rgb_fused", "thermal_fused")} if gate_rows else None
     return {"table": table, "comparisons": comps, "uncertainty": unc, "vacuity_vs_contrast": vac,
             "ds_conflict_at_target": conflict, "observability": obs, "gate_usage": gate_usage, "fitted": fitted,
             "gate": gate, "conditions": {c: CONDITIONS[c] for c in cfg.conditions}}
@@ -841,7 +868,9 @@ def time_gating(seqs: list[SequenceData], models, cfg: DetectionConfig, gate: di
                 b = StreamMaps.of(t_m(x["thermal"][t:t + 1]))
                 fuse_maps(a, b, "ds")
             t_full += time.perf_counter() - t0
-            g = HysteresisGate(2, GateParams(tau_high=gate["tau_high"], tau_low=gate["tau_low"], n=cfg.gate.n, mode="window"))
+            g = HysteresisGate(2,
+                               GateParams(tau_high=gate["tau_high"], tau_low=gate["tau_low"], n=cfg.gate.n,
+                                          mode="window"))
             t0 = time.perf_counter()
             for t in range(seq.n_frames):
                 plan = g.plan()
@@ -857,7 +886,8 @@ def time_gating(seqs: list[SequenceData], models, cfg: DetectionConfig, gate: di
             t_gated += time.perf_counter() - t0
             frames += seq.n_frames
     load = os.getloadavg()
-    return {"frames": frames, "full_s_per_frame": t_full / max(frames, 1), "gated_s_per_frame": t_gated / max(frames, 1),
+    return {"frames": frames, "full_s_per_frame": t_full / max(frames, 1),
+            "gated_s_per_frame": t_gated / max(frames, 1),
             "saving": 1.0 - t_gated / t_full if t_full > 0 else float("nan"),
             "evaluated_fraction": evaluated / max(2 * frames, 1), "loadavg_1m": load[0],
             "note": "measured inside the evaluate stage, machine load as printed"}
@@ -869,9 +899,12 @@ def _verdict(c: dict | None, better: str, worse: str, unit: float = 100.0, what:
 
     if c is None or not np.isfinite(c.get("diff", np.nan)):
         return "not measured"
-    txt = (f"{better} - {worse} = {c['diff'] * unit:+.2f} {what} (sequence-bootstrap 95% CI [{c['ci_low'] * unit:+.2f}, "
-           f"{c['ci_high'] * unit:+.2f}], sign-flip p = {c['p']:.3f}, n = {c['n']} sequences, MDE {c['mde'] * unit:.2f} {what})")
-    return txt + ": " + verdict_sentence(comparison_verdict(c["diff"], c["ci_low"], c["ci_high"], c["mde"]), better, worse) + "."
+    txt = (f"{better} - {worse} = {c['diff'] * unit:+.2f} {what} (sequence-bootstrap 95% CI "
+           f"[{c['ci_low'] * unit:+.2f}, {c['ci_high'] * unit:+.2f}], sign-flip p = {c['p']:.3f}, "
+           f"n = {c['n']} sequences, "
+           f"MDE {c['mde'] * unit:.2f} {what})")
+    verdict = comparison_verdict(c["diff"], c["ci_low"], c["ci_high"], c["mde"])
+    return txt + ": " + verdict_sentence(verdict, better, worse) + "."
 
 
 def _comp(summary, set_name, a, b, metric="state_acc"):
@@ -900,7 +933,8 @@ def headline(summary: dict[str, Any], cfg: DetectionConfig) -> dict[str, str]:
     out = {}
     q1 = [_verdict(_comp(summary, xs, "e_ds/fused", "d_average/fused"), "DS", "average"),
           _verdict(_comp(summary, xs, "e_ds/fused", "g_feature_fusion/fused"), "DS", "feature fusion"),
-          "On thermal-blind frames only: " + _verdict(_comp(summary, xs, "e_ds/fused", "d_average/fused", "acc_thermal_blind"),
+          "On thermal-blind frames only: " + _verdict(_comp(summary, xs, "e_ds/fused", "d_average/fused",
+                                                            "acc_thermal_blind"),
                                                      "DS", "average")]
     out["q1_ds_through_crossover"] = f"State accuracy on the '{xs}' set. " + " ".join(q1)
     v = summary.get("vacuity_vs_contrast", {})
@@ -908,10 +942,12 @@ def headline(summary: dict[str, Any], cfg: DetectionConfig) -> dict[str, str]:
         s = v["spearman_u"]
         rises = s["ci_high"] < 0
         out["q2_thermal_vacuity_vs_dT"] = (
-            f"Spearman rho(|dT|/NETD, thermal vacuity at the target cell) = {s['rho']:.3f} [{s['ci_low']:.3f}, {s['ci_high']:.3f}] "
+            f"Spearman rho(|dT|/NETD, thermal vacuity at the target cell) = {s['rho']:.3f} [{s['ci_low']:.3f}, "
+            f"{s['ci_high']:.3f}] "
             f"over {s['n']} frames / {s.get('n_clusters', '?')} sequences: " +
             ("vacuity rises as |dT| falls toward the NETD." if rises else
-             "vacuity does not rise as |dT| falls (the CI does not lie below 0)." if s["ci_low"] > 0 or s["ci_high"] >= 0 else ""))
+             "vacuity does not rise as |dT| falls (the CI does not lie below 0)." if s["ci_low"] > 0
+             or s["ci_high"] >= 0 else ""))
     else:
         out["q2_thermal_vacuity_vs_dT"] = "not measured (no evidential thermal condition)"
     parts = []
@@ -920,15 +956,19 @@ def headline(summary: dict[str, Any], cfg: DetectionConfig) -> dict[str, str]:
         c = _unc(summary, "crop", f"b_evidential/{stream}", "crop_u")
         inv = a is not None and a.get("ci_high") is not None and np.isfinite(a["ci_high"]) and a["ci_high"] < 0.5
         rec = c is not None and c.get("ci_low") is not None and np.isfinite(c["ci_low"]) and c["ci_low"] > 0.5
-        parts.append(f"{stream}: anchor-level vacuity UAUC {_uauc_txt(a)} ({'inverted' if inv else 'no inversion established'}); "
-                     f"crop-level {_uauc_txt(c)} ({'recovered (CI above 0.5)' if rec else 'not recovered (CI includes or is below 0.5)'}).")
+        parts.append(f"{stream}: anchor-level vacuity UAUC {_uauc_txt(a)} "
+                     f"({'inverted' if inv else 'no inversion established'}); "
+                     f"crop-level {_uauc_txt(c)} "
+                     f"({'recovered (CI above 0.5)' if rec else 'not recovered (CI includes or is below 0.5)'}).")
     out["q3_anchor_inversion_crop_recovery"] = " ".join(parts)
     g = summary.get("gate_timing")
     if g:
         acc = _comp(summary, "all", "f_ds_gated/fused", "e_ds/fused")
         out["q4_gating_saves_cpu"] = (
-            f"Batch-1 CPU time per frame: {g['full_s_per_frame'] * 1e3:.1f} ms without the gate, {g['gated_s_per_frame'] * 1e3:.1f} ms with it "
-            f"(saving {g['saving'] * 100:.1f} %, {g['evaluated_fraction'] * 100:.1f} % of stream forwards run; load average {g['loadavg_1m']:.1f}). "
+            f"Batch-1 CPU time per frame: {g['full_s_per_frame'] * 1e3:.1f} ms without the gate, "
+            f"{g['gated_s_per_frame'] * 1e3:.1f} ms with it "
+            f"(saving {g['saving'] * 100:.1f} %, {g['evaluated_fraction'] * 100:.1f} % of stream forwards run; load "
+            f"average {g['loadavg_1m']:.1f}). "
             f"Accuracy cost: " + _verdict(acc, "gated", "ungated"))
     else:
         out["q4_gating_saves_cpu"] = "not measured (condition f not run)"

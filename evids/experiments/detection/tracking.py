@@ -95,7 +95,8 @@ class SwitchingTracker:
                     kf.update(centres[j])
                     self._size = 0.5 * self._size + 0.5 * dets.boxes[j, 2:]
                     cx, cy = kf.x[:2]
-                    box = [float(cx - self._size[0] / 2), float(cy - self._size[1] / 2), float(self._size[0]), float(self._size[1])]
+                    box = [float(cx - self._size[0] / 2), float(cy - self._size[1] / 2), float(self._size[0]),
+                           float(self._size[1])]
                     return TrackStep(box, float(dets.scores[j]), "tracker", False, self.track_id)
             self._kf = None
             box, score = self._redetect(dets)

@@ -38,7 +38,7 @@ NOMINAL_CENTRES_HZ = (50, 63, 80, 100, 125, 160, 200, 250, 315, 400, 500, 630, 8
                       2500, 3150, 4000, 5000, 6300, 8000, 10000, 12500, 16000)
 PYIN_SAMPLE_RATE_HZ = 8000          # YIN runs on a resampled copy (fundamentals 60-1600 Hz)
 YIN_FRAME = 1024
-YIN_THRESHOLD = 0.3                 # CMNDF dip that counts as periodic (YIN paper: 0.1 for clean speech; outdoor noise needs more)
+YIN_THRESHOLD = 0.3  # CMNDF dip that counts as periodic (YIN paper: 0.1 for clean speech; outdoor noise needs more)
 PYIN_FMIN_HZ, PYIN_FMAX_HZ = 60.0, 1600.0
 PITCHED_VOICED_FRACTION = 0.5       # a segment is pitched when YIN voices >= half of its frames
 HARMONIC_FLOOR_DB = 10.0            # a harmonic counts when its peak is this far above the local median
@@ -245,7 +245,8 @@ def _pooled(stats: Iterable[dict[str, Any]]) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {k: np.array([s[k] for s in segs], dtype=np.float64)
                                   for k in ("spectral_centroid_hz", "pitched", "voiced_fraction", "f0_hz",
                                             "n_harmonics", "level_fluctuation_db", "level_dbfs")}
-    bands = np.array([s["third_octave_dbfs"] for s in segs], dtype=np.float64).reshape(len(segs), len(NOMINAL_CENTRES_HZ))
+    bands = np.array([s["third_octave_dbfs"] for s in segs],
+                     dtype=np.float64).reshape(len(segs), len(NOMINAL_CENTRES_HZ))
     rel = bands - 10 * np.log10(np.maximum(np.sum(10 ** (bands / 10), axis=1, keepdims=True), 1e-30))
     for i, fc in enumerate(NOMINAL_CENTRES_HZ):
         out[f"band_{fc}hz_dbfs"] = bands[:, i] if bands.size else np.zeros(0)
@@ -324,7 +325,8 @@ def _config_model():
                 if kind not in self.drone_size_m:
                     raise ValueError(f"drone_size_m: no size span for {kind!r}")
             spans = {"drone_speed_mps": self.drone_speed_mps, "elevation_deg": self.elevation_deg,
-                     "helicopter_range_m": self.helicopter_range_m, **{f"drone_size_m.{k}": v for k, v in self.drone_size_m.items()},
+                     "helicopter_range_m": self.helicopter_range_m,
+                     **{f"drone_size_m.{k}": v for k, v in self.drone_size_m.items()},
                      **{f"drone_range_m[{i}]": v for i, v in enumerate(self.drone_range_m)}}
             for name, (lo, hi) in spans.items():
                 if lo > hi:
@@ -385,7 +387,8 @@ def _drone_scenario(cfg, rng: np.random.Generator, name: str):
     if kind == "fixed_wing":
         speed = max(speed, 12.0)
     if speed < 0.5:
-        trajectory = {"kind": "hover", "center_m": np.round(centre, 3).tolist(), "drift_m": round(_u(rng, (0.2, 1.5)), 2)}
+        trajectory = {"kind": "hover", "center_m": np.round(centre, 3).tolist(),
+                      "drift_m": round(_u(rng, (0.2, 1.5)), 2)}
     else:
         half = 0.5 * speed * cfg.duration_s * np.array([np.cos(heading), np.sin(heading), 0.0])
         trajectory = {"kind": "waypoints", "speed_mps": round(speed, 3),
@@ -465,7 +468,7 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
     sr, n = cfg.sample_rate_hz, round(cfg.duration_s * cfg.sample_rate_hz)
     classes = ["DRONE"] + (["HELICOPTER"] if helicopter_available() else []) + ["BACKGROUND"]
     clips: list[AudioClip] = []
-    for c, cls in enumerate(classes):
+    for cls in classes:
         for j in range(n_per_class):
             rng = rng_for(seed, "generation", _SYNTH_TAG, CLASSES.index(cls), j)
             clip_seed = int(rng.integers(0, 2 ** 31 - 1))
@@ -477,7 +480,8 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
                 mix = ac.synthesize_audio(timeline, clip_seed, ambience=ambience, duration_s=cfg.duration_s,
                                           sample_rate_hz=sr).mix_pa
             elif cls == "HELICOPTER":
-                mix = _helicopter_mix(cfg, rng, clip_seed, n) + sum(ac.synthesize_ambience(ambience, n, sr, clip_seed).values())
+                mix = (_helicopter_mix(cfg, rng, clip_seed, n)
+                       + sum(ac.synthesize_ambience(ambience, n, sr, clip_seed).values()))
             else:
                 mix = sum(ac.synthesize_ambience(ambience, n, sr, clip_seed).values())
             samples = _record(cfg, np.asarray(mix, dtype=np.float64), clip_seed, CLASSES.index(cls))
@@ -552,7 +556,7 @@ def _balance_weights(y: np.ndarray, domain: np.ndarray) -> np.ndarray:
     groups = [(d, lab) for d in np.unique(domain) for lab in (0, 1) if np.any((domain == d) & (y == lab))]
     for d, lab in groups:
         m = (domain == d) & (y == lab)
-        n_labels = len({l for dd, l in groups if dd == d})
+        n_labels = len({other for dd, other in groups if dd == d})
         w[m] = 1.0 / (m.sum() * n_labels * len(np.unique(domain)))
     return w * y.size / w.sum()
 
@@ -624,7 +628,8 @@ def balanced_accuracy(y: np.ndarray, score: np.ndarray, threshold: float = 0.5) 
     return float(np.mean(parts)) if parts else float("nan")
 
 
-def _bootstrap_indices(test: _Windows, clips: list[AudioClip], rng: np.random.Generator, n_boot: int) -> list[np.ndarray]:
+def _bootstrap_indices(test: _Windows, clips: list[AudioClip], rng: np.random.Generator,
+                       n_boot: int) -> list[np.ndarray]:
     """Window indices of ``n_boot`` clip-bootstrap resamples (clips drawn with replacement per class)."""
     by_clip = {i: np.flatnonzero(test.clip == i) for i in np.unique(test.clip)}
     per_class: dict[str, list[int]] = {}
@@ -748,7 +753,8 @@ def run_audio_track(real_clips: list[AudioClip], synthetic_clips: list[AudioClip
                 per_class[cls] = {"synthetic": "no source"}
                 continue
             per_class[cls] = {half: compare_statistics(pools[half], pools["synthetic"])
-                              for half in ("evaluation", "calibration") if any(c.cls == cls for c in (ev if half == "evaluation" else cal))}
+                              for half in ("evaluation", "calibration")
+                              if any(c.cls == cls for c in (ev if half == "evaluation" else cal))}
         say("log-mel windows")
         feats = {c.name + "/" + c.half: logmel_windows(c) for c in [*cal, *ev, *syn]}
         w_cal, w_ev, w_syn = _windows(cal, feats), _windows(ev, feats), _windows(syn, feats)
@@ -760,9 +766,11 @@ def run_audio_track(real_clips: list[AudioClip], synthetic_clips: list[AudioClip
             few = _few_shot(cal, few_rng)
             w_few = _windows(few, feats)
             sets = {"a_real": (w_cal, np.zeros(len(w_cal.y))), "b_synthetic": (w_syn, np.ones(len(w_syn.y))),
-                    "c_synthetic_plus_real": (_concat(w_syn, w_cal), np.r_[np.ones(len(w_syn.y)), np.zeros(len(w_cal.y))]),
+                    "c_synthetic_plus_real": (_concat(w_syn, w_cal),
+                                              np.r_[np.ones(len(w_syn.y)), np.zeros(len(w_cal.y))]),
                     "d_few_shot": (w_few, np.zeros(len(w_few.y))),
-                    "d_plus_few_shot_synthetic": (_concat(w_syn, w_few), np.r_[np.ones(len(w_syn.y)), np.zeros(len(w_few.y))])}
+                    "d_plus_few_shot_synthetic": (_concat(w_syn, w_few),
+                                                  np.r_[np.ones(len(w_syn.y)), np.zeros(len(w_few.y))])}
             for cond, (train, domain) in sets.items():
                 w = _balance_weights(train.y, domain)
                 scores[cond]["logreg"].append(_fit_predict_lr(train, w, w_ev, seed))
@@ -782,11 +790,14 @@ def run_audio_track(real_clips: list[AudioClip], synthetic_clips: list[AudioClip
                 b_auc = np.array([np.mean([roc_auc(w_ev.y[i], s[i]) for s in runs]) for i in boot])
                 b_bacc = [np.mean([balanced_accuracy(w_ev.y[i], s[i]) for s in runs]) for i in boot]
                 boot_auc[cond] = b_auc
-                res[cond] = {"description": CONDITIONS[cond], "roc_auc": float(np.mean(aucs)), "roc_auc_ci95": _ci(list(b_auc)),
+                res[cond] = {"description": CONDITIONS[cond], "roc_auc": float(np.mean(aucs)),
+                             "roc_auc_ci95": _ci(list(b_auc)),
                              "roc_auc_per_seed": [float(a) for a in aucs], "balanced_accuracy": float(np.mean(baccs)),
                              "balanced_accuracy_ci95": _ci(b_bacc),
-                             "helicopter_called_drone": float(np.mean([np.mean(s[heli] > 0.5) for s in runs])) if heli.any() else None,
-                             "background_called_drone": float(np.mean([np.mean(s[back] > 0.5) for s in runs])) if back.any() else None}
+                             "helicopter_called_drone": float(np.mean([np.mean(s[heli] > 0.5) for s in runs]))
+                             if heli.any() else None,
+                             "background_called_drone": float(np.mean([np.mean(s[back] > 0.5) for s in runs]))
+                             if back.any() else None}
             ratio = boot_auc["b_synthetic"] / boot_auc["a_real"]
             res["ratio_synthetic_over_real_auc"] = res["b_synthetic"]["roc_auc"] / res["a_real"]["roc_auc"]
             res["ratio_ci95"] = _ci(list(ratio))

@@ -15,8 +15,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from evids.metrics.bootstrap import clustered_bootstrap
 from evids.experiments.sim2real.samples import FrameSample
+from evids.metrics.bootstrap import clustered_bootstrap
 
 CONDITIONS = ("a_real", "b_synthetic", "c_synthetic_plus_real", "d_few_shot", "d_plus_few_shot_synthetic")
 CONDITION_LABELS = {
@@ -179,7 +179,8 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
 
     # rows = test crops; arrays (n_test, n_seeds, n_conditions)
     data = stacked.transpose(1, 0, 2)
-    out: dict[str, Any] = {"conditions": {}, "n_test_clips": int(np.unique(test.clip).size), "n_test_crops": int(len(test.y)),
+    out: dict[str, Any] = {"conditions": {}, "n_test_clips": int(np.unique(test.clip).size),
+                           "n_test_crops": int(len(test.y)),
                            "train_sizes": {n: int(len(s.y)) for n, s in sets.items()},
                            "train_clips": {n: int(np.unique(s.clip).size) for n, s in sets.items()}}
     for k, name in enumerate(names):
@@ -234,5 +235,7 @@ def domain_classifier(real: CropSet, synthetic: CropSet, *, seeds: Sequence[int]
     finally:
         _FORKED.clear()
     accs = [balanced_accuracy(test_y, done[i]) if len(test_y) else float("nan") for i in range(len(seeds))]
-    return {"accuracy": float(np.mean(accs)), "per_seed": accs, "n_train": int(len(train.y)), "n_test": int(len(test_y)),
-            "test_clips_real": int(np.unique(real.clip[rt]).size), "test_sequences_synthetic": int(np.unique(synthetic.clip[st]).size)}
+    return {"accuracy": float(np.mean(accs)), "per_seed": accs, "n_train": int(len(train.y)),
+            "n_test": int(len(test_y)),
+            "test_clips_real": int(np.unique(real.clip[rt]).size),
+            "test_sequences_synthetic": int(np.unique(synthetic.clip[st]).size)}

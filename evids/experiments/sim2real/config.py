@@ -31,7 +31,8 @@ class VisualProtocol(_Model):
     crop_px: int = Field(default=32, ge=8, le=256)
     crop_context: float = Field(default=2.0, ge=1.0, le=8.0, description="crop side / largest box side")
     min_crop_px: int = Field(default=16, ge=4, le=256)
-    detector_frames_per_clip: int = Field(default=4, ge=0, le=1000, description="whole frames kept per clip for the detector (0: no detector)")
+    detector_frames_per_clip: int = Field(default=4, ge=0, le=1000,
+                                          description="whole frames kept per clip for the detector (0: no detector)")
     detector_steps: int = Field(default=400, ge=1, le=100_000)
     quick_detector_steps: int = Field(default=10, ge=1, le=10_000)
     quick_image_size: tuple[int, int] = (96, 80)

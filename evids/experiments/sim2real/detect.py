@@ -103,7 +103,8 @@ def ap50(gt: dict[str, Any], ids: dict[tuple[int, int], int], detections: list[l
     return coco_ap50_file(gt_path, res_path)
 
 
-def run_detector(train_sets: dict[str, list[ClipSummary]], test: list[ClipSummary], sensor: str, *, seeds: Sequence[int],
+def run_detector(train_sets: dict[str, list[ClipSummary]], test: list[ClipSummary], sensor: str, *,
+                 seeds: Sequence[int],
                  steps: int, folder: Path) -> dict[str, Any]:
     """AP50 on ``test`` of the detector trained on each of ``train_sets`` (e.g. {"real": ..., "synthetic": ...})
     with every seed; mean and per seed, and the ratio synthetic / real."""

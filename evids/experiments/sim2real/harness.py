@@ -163,7 +163,8 @@ def write_sheets(samples: list[FrameSample], clips: list[ClipSummary], sensor: s
         rows = []
         for cls in classes:
             for domain, half in (("real", "calibration"), ("synthetic", "synthetic")):
-                pool = [s for s in samples if s.sensor == sensor and s.cls == cls and s.domain == domain and s.half == half]
+                pool = [s for s in samples if s.sensor == sensor and s.cls == cls and s.domain == domain
+                        and s.half == half]
                 imgs = [s.crop for s in pool if s.crop.size] if kind == "crops" else \
                     [s.background for s in pool if s.background is not None]
                 rows.append(_label(_tile(_pick(imgs, 12, rng), 64, 12), f"{cls} {domain}"))
@@ -200,9 +201,9 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                  progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Run the whole protocol into ``out`` (see the module docstring); returns the summary."""
     from evids.experiments.pipeline import forked_map
+    from scenes.errors import UserInputError
     from simulator.dataset.generate import generate_dataset
     from simulator.formats.svanstrom import open_benchmark
-    from scenes.errors import UserInputError
     from simulator.seeding import rng_for
 
     t0 = time.time()
@@ -255,7 +256,8 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         del res
     summary["timings_s"]["synthetic_render"] = time.time() - t
     t = time.time()
-    for _, (got, summ) in forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress else None):
+    for _, (got, summ) in forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
+                                     else None):
         samples += got
         clip_summaries.append(summ)
     summary["timings_s"]["synthetic_samples"] = time.time() - t
@@ -278,23 +280,28 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         test = classify.crop_set(real_eval, classes)
         cond = classify.evaluate_conditions(sets, test, len(classes), seeds=seeds, epochs=epochs,
                                             batch_size=tr.batch_size, learning_rate=tr.learning_rate,
-                                            bootstrap=min(tr.bootstrap, 200) if quick else tr.bootstrap, rng_seed=cfg.seed,
-                                            workers=vis.workers, label=f"{sensor}: crop classifiers" if progress else None)
+                                            bootstrap=min(tr.bootstrap, 200) if quick else tr.bootstrap,
+                                            rng_seed=cfg.seed,
+                                            workers=vis.workers, label=f"{sensor}: crop classifiers" if progress
+                                            else None)
         domain = {}
         for kind in ("crop", "background"):
             domain[kind] = classify.domain_classifier(classify.crop_set(real_cal, classes, kind),
                                                       classify.crop_set(synthetic, classes, kind),
                                                       seeds=seeds, epochs=epochs, batch_size=tr.batch_size,
                                                       learning_rate=tr.learning_rate, workers=vis.workers,
-                                                      rng=rng_for(cfg.seed, "sim2real", 8, VISUAL_SENSORS.index(sensor)))
+                                                      rng=rng_for(cfg.seed, "sim2real", 8,
+                                                                  VISUAL_SENSORS.index(sensor)))
         if vis.detector_frames_per_clip:
             from evids.experiments.sim2real import detect
 
             s_clips = [c for c in clip_summaries if c.sensor == sensor]
             train_sets = {"real": [c for c in s_clips if c.domain == "real" and c.half == "calibration"],
                           "synthetic": [c for c in s_clips if c.domain == "synthetic"]}
-            detector = detect.run_detector(train_sets, [c for c in s_clips if c.domain == "real" and c.half == "evaluation"],
-                                           sensor, seeds=seeds, steps=vis.quick_detector_steps if quick else vis.detector_steps,
+            detector = detect.run_detector(train_sets,
+                                           [c for c in s_clips if c.domain == "real" and c.half == "evaluation"],
+                                           sensor, seeds=seeds, steps=vis.quick_detector_steps if quick
+                                           else vis.detector_steps,
                                            folder=out / "detector" / sensor)
         else:
             detector = {"note": "off (visual.detector_frames_per_clip: 0)"}
@@ -302,7 +309,8 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                              rng_for(cfg.seed, "sim2real", 9, VISUAL_SENSORS.index(sensor)))
         summary["sensors"][sensor] = {
             "classes": classes,
-            "n_clips": {"real_calibration": len({s.clip for s in real_cal}), "real_evaluation": len({s.clip for s in real_eval}),
+            "n_clips": {"real_calibration": len({s.clip for s in real_cal}),
+                        "real_evaluation": len({s.clip for s in real_eval}),
                         "synthetic": len({s.clip for s in synthetic})},
             "statistics": statistics_table(s_samples, clip_summaries, sensor, classes),
             "classifier": cond, "domain_classifier": domain, "detector": detector, "sheets": files,
@@ -347,20 +355,23 @@ def format_table(summary: dict[str, Any]) -> str:
                         lines.append(f"  {v.get('description', cond):<52} {v['roc_auc']:.3f} "
                                      f"[{v['roc_auc_ci95'][0]:.3f}, {v['roc_auc_ci95'][1]:.3f}]")
                 if "ratio_synthetic_over_real_auc" in r:
-                    lines.append(f"  ratio (b)/(a) {r['ratio_synthetic_over_real_auc']:.3f}; helicopter windows called drone by (b) "
+                    lines.append(f"  ratio (b)/(a) {r['ratio_synthetic_over_real_auc']:.3f}; helicopter windows called "
+                                 "drone by (b) "
                                  f"{100 * (r['b_synthetic'].get('helicopter_called_drone') or 0):.0f} %")
             continue
         c = res["classifier"]
         lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({c['n_test_clips']} clips, "
                      f"{c['n_test_crops']} crops; chance {1 / len(res['classes']):.2f})")
         for name, r in c["conditions"].items():
-            lines.append(f"  {classify.CONDITION_LABELS[name]:<40} {r['estimate']:.3f} [{r['ci_low']:.3f}, {r['ci_high']:.3f}]")
+            lines.append(f"  {classify.CONDITION_LABELS[name]:<40} {r['estimate']:.3f} [{r['ci_low']:.3f}, "
+                         f"{r['ci_high']:.3f}]")
         for key, label in (("ratio_b_over_a", "ratio (b)/(a)"), ("gain_c_minus_a", "(c) - (a)"),
                            ("gain_dplus_minus_d", "(d+) - (d)")):
             r = c.get(key)
             if r:
                 f = "{:.3f}" if key == "ratio_b_over_a" else "{:+.3f}"
-                lines.append(f"  {label:<40} {f.format(r['estimate'])} [{f.format(r['ci_low'])}, {f.format(r['ci_high'])}]"
+                lines.append(f"  {label:<40} {f.format(r['estimate'])} [{f.format(r['ci_low'])}, "
+                             f"{f.format(r['ci_high'])}]"
                              f" MDE {r['mde']:.3f}")
         det = res.get("detector", {})
         for name, r in det.get("conditions", {}).items():
@@ -371,7 +382,8 @@ def format_table(summary: dict[str, Any]) -> str:
             lines.append(f"  detector AP50 ratio synthetic / real     {det['ratio_synthetic_over_real']:.3f}")
         for kind, d in res["domain_classifier"].items():
             lines.append(f"  domain classifier, {kind + 's':<23} {d['accuracy']:.3f} (0.5 = indistinguishable)")
-        inside = [(cls, st) for cls, rows in res["statistics"].items() for st, row in rows.items() if row["inside"] is not None]
+        inside = [(cls, st) for cls, rows in res["statistics"].items() for st, row in rows.items()
+                  if row["inside"] is not None]
         n_in = sum(res["statistics"][cls][st]["inside"] for cls, st in inside)
         lines.append(f"  statistics: synthetic median inside the real IQR for {n_in} of {len(inside)}")
     return "\n".join(lines)

@@ -166,11 +166,13 @@ def pick_frames(n_frames: int, k: int) -> list[int]:
 
 def samples_from_frames(frames: Iterator[tuple[int, np.ndarray]], boxes: list[Box | None], wanted: list[int], *,
                         domain: str, sensor: str, cls: str, clip: str, half: str, crop_px: int, context: float,
-                        min_crop_px: int, rng: np.random.Generator, keep: int = 0) -> tuple[list[FrameSample], ClipSummary]:
+                        min_crop_px: int, rng: np.random.Generator,
+                        keep: int = 0) -> tuple[list[FrameSample], ClipSummary]:
     """Samples of the wanted frames (targets present only; background patches always) and the clip
     summary, which keeps ``keep`` of the wanted frames whole (spread evenly; for the detector).
     ``frames`` must yield every wanted index and its predecessor, in order."""
-    kept_idx = {wanted[int(round(j))] for j in np.linspace(0, len(wanted) - 1, min(keep, len(wanted)))} if keep else set()
+    kept_idx = {wanted[int(round(j))]
+                for j in np.linspace(0, len(wanted) - 1, min(keep, len(wanted)))} if keep else set()
     kept: list[tuple[int, np.ndarray, Box | None]] = []
     samples: list[FrameSample] = []
     wanted_set = set(wanted)

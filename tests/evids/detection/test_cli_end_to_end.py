@@ -31,7 +31,8 @@ def _fake_dataset(root: Path, thermal: bool, splits: tuple[str, ...]) -> Path:
         (d / "meta.json").write_text(json.dumps({"cameras": cams, "n_frames": 2}))
         seqs.append({"name": name, "index": i, "split": split, "source": "det_control_a", "seed": 1, "n_frames": 2,
                      "content_sha256": "0"})
-    (root / "manifest.json").write_text(json.dumps({"format": "evids-native-dataset", "complete": True, "sequences": seqs}))
+    (root / "manifest.json").write_text(json.dumps({"format": "evids-native-dataset", "complete": True,
+                                                    "sequences": seqs}))
     return root
 
 
@@ -63,6 +64,32 @@ def test_bad_inputs_exit_2_and_write_nothing(tmp_path, capsys):
     cfg = _config(tmp_path, good_train, good_test, crossover_set="nope")
     assert _run(["detect", "train", "--config", str(cfg), "--out", str(tmp_path / "r")]) == 2
     assert "crossover_set" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["detect", "train", "--config", "tiny"], ["detect", "run", "--config", "tiny"],
+                                  ["demo", "--detection"]], ids=["detect train", "detect run", "demo --detection"])
+def test_detection_commands_keep_the_safe_output_rule(tmp_path, capsys, monkeypatch, argv):
+    """`evids detect` and `evids demo --detection` create their run folder through the same checked
+    path as every other command: a user's folder, the current folder or the input is refused with
+    exit status 2 before any work, and not one byte of it changes."""
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "keep.txt").write_text("precious")
+    assert _run([*argv, "--out", str(user)]) == 2
+    assert "not written by evids" in capsys.readouterr().err
+    assert sorted(p.name for p in user.iterdir()) == ["keep.txt"] and (user / "keep.txt").read_text() == "precious"
+    monkeypatch.chdir(user)
+    assert _run([*argv, "--out", "."]) == 2
+    assert "current folder" in capsys.readouterr().err
+    assert sorted(p.name for p in user.iterdir()) == ["keep.txt"]
+
+
+def test_detect_train_refuses_an_out_inside_its_input_dataset(tmp_path, capsys):
+    train = _fake_dataset(tmp_path / "train", True, ("train", "val"))
+    cfg = _config(tmp_path, train, _fake_dataset(tmp_path / "test", True, ("test",)))
+    assert _run(["detect", "train", "--config", str(cfg), "--out", str(train / "run")]) == 2
+    assert "inside the input" in capsys.readouterr().err
+    assert not (train / "run").exists()
 
 
 def test_unknown_named_config_is_refused(tmp_path, capsys):

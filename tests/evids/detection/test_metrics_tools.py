@@ -22,7 +22,8 @@ def _coco_gt(path: Path, boxes: list[list[float] | None]) -> dict[str, int]:
             anns.append({"id": len(anns) + 1, "image_id": i + 1, "category_id": 1, "track_id": 1, "bbox": b,
                          "area": b[2] * b[3], "iscrowd": 0})
     path.write_text(json.dumps({"images": images, "annotations": anns, "videos": [{"id": 1, "file_name": "v"}],
-                                "categories": [{"id": 1, "name": "drone"}, {"id": 2, "name": "bird", "distractor": True}]}))
+                                "categories": [{"id": 1, "name": "drone"},
+                                               {"id": 2, "name": "bird", "distractor": True}]}))
     return {f"v/{i}": i + 1 for i in range(len(boxes))}
 
 
@@ -81,7 +82,8 @@ def test_state_accuracy_both_variants_from_label_file(tmp_path):
     r = M.antiuav_state_accuracy(f, pred)
     assert r["plain"] == pytest.approx((1 + 0 + 1 + 0) / 4)
     assert r["penalised"] == pytest.approx(0.5 - 0.2 * 0.5 ** 0.3)
-    np.testing.assert_allclose(M.per_frame_state_values(pred, [[0, 0, 10, 10], [0, 0, 10, 10], None, None]), [1, 0, 1, 0])
+    np.testing.assert_allclose(M.per_frame_state_values(pred, [[0, 0, 10, 10], [0, 0, 10, 10], None, None]),
+                               [1, 0, 1, 0])
 
 
 def test_paired_comparison_exact_sign_flip_and_mde():

@@ -24,7 +24,8 @@ from scenes.errors import UserInputError
 
 def test_example_config_validates_and_bad_generation_config_is_named():
     assert load_experiment_config("examples/experiment.yaml").protocol.noise_seeds == [42, 123, 456]
-    bad = {**QUICK_CONFIG, "dataset": {"generate": {"name": "x", "clips": [{"scenario": "clear_day_quad", "count": 0}]}}}
+    bad = {**QUICK_CONFIG,
+           "dataset": {"generate": {"name": "x", "clips": [{"scenario": "clear_day_quad", "count": 0}]}}}
     with pytest.raises(UserInputError, match=r"dataset.generate: .*clips.0.count"):
         load_experiment_config(bad)
 

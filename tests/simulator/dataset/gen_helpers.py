@@ -9,7 +9,8 @@ import yaml
 TINY = {
     "name": "tiny",
     "mixture": [{"scenario": "clear_day_quad", "weight": 2}, {"scenario": "bird_confuser"}],
-    "randomise": {"target_kinds": ["quadcopter", "hexacopter"], "range_m": [80, 160], "trajectory_kinds": ["hover", "flyby"],
+    "randomise": {"target_kinds": ["quadcopter", "hexacopter"], "range_m": [80, 160],
+                  "trajectory_kinds": ["hover", "flyby"],
                   "distractors": [1, 2], "sun_elevation_deg": [15, 50], "air_temperature_k": [280, 300],
                   "part_temperature_offset_k": [-2, 2], "camera_yaw_deg": [-0.2, 0.2]},
     "sequences": 4, "frames": 3, "image_size": [96, 80], "spp": 1,

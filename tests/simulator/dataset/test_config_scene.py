@@ -35,7 +35,8 @@ def test_distance_bins_follow_their_weights_and_ranges():
     near, far = (ranges > 19) & (ranges < 41), (ranges > 149) & (ranges < 201)
     assert np.all(near | far) and near.any() and far.any()
     draws = np.array([_draw_bin(cfg.randomise.distance_bins, np.random.default_rng(7)) for _ in range(1)]
-                     + [_draw_bin(cfg.randomise.distance_bins, rng) for rng in [np.random.default_rng(8)] for _ in range(4000)])
+                     + [_draw_bin(cfg.randomise.distance_bins, rng) for rng in [np.random.default_rng(8)]
+                        for _ in range(4000)])
     assert (draws < 100).mean() == pytest.approx(0.75, abs=0.02)   # binomial sd 0.007
 
 

@@ -160,7 +160,8 @@ def test_process_pool_gives_the_same_bytes(tiny, tmp_path):
 
 
 def test_ray_executor_gives_the_same_hashes(tiny, tmp_path):
-    pytest.importorskip("ray", reason="Ray is an optional extra (pip install 'evids[ray]'); the Ray path is untested here")
+    pytest.importorskip("ray",
+                        reason="Ray is an optional extra (pip install 'evids[ray]'); the Ray path is untested here")
     config, reference = tiny
     out = tmp_path / "ray"
     generate_dataset(config, out, 5, workers=2, executor="ray", progress=False, sequences=2)  # first 2 of 4

@@ -12,7 +12,8 @@ from simulator.dataset import trident as tr
 # a continuous video link inside the receiver window, so every short capture holds drone RF
 # (the realistic presets hop: most 2.5 ms captures hold 0-1 control bursts, see tests/simulator/physics/test_rf.py)
 ALWAYS_ON_LINK = {"kind": "ofdm", "name": "video", "role": "video", "tx_power_dbm": 23.0, "bandwidth_hz": 9e6,
-                  "subcarrier_spacing_hz": 15e3, "channel_centres_hz": [2440e6], "duty": 1.0, "burst_range_s": [1e-3, 2e-3]}
+                  "subcarrier_spacing_hz": 15e3, "channel_centres_hz": [2440e6], "duty": 1.0,
+                  "burst_range_s": [1e-3, 2e-3]}
 RIG_FIXED = {"position_m": [0, 0, 1.5], "look_at_m": [0, 80, 20], "rgb": {"hfov_deg": 30}}
 
 
@@ -21,7 +22,8 @@ def _scenario(targets, rig=RIG_FIXED, name="s"):
 
 
 def _hover(name, center, kind="quadcopter"):
-    return {"name": name, "kind": kind, "size_m": 0.45, "trajectory": {"kind": "hover", "center_m": center, "drift_m": 0.1}}
+    return {"name": name, "kind": kind, "size_m": 0.45,
+            "trajectory": {"kind": "hover", "center_m": center, "drift_m": 0.1}}
 
 
 def _config(clips, **kw):
@@ -53,7 +55,7 @@ def _clip(targets, rig=RIG_FIXED, seed=3, **kw):
 
 
 def test_segments_align_across_modalities_and_truth():
-    clip, cfg = _clip([_hover("d", [0, 40, 10])])     # 41 m: audible over 45 dB wind with the calibrated 70.5 dBA at 1 m
+    clip, cfg = _clip([_hover("d", [0, 40, 10])])  # 41 m: audible over 45 dB wind with the calibrated 70.5 dBA at 1 m
     n = cfg.n_segments
     assert n == 4
     assert clip.audio.shape == (44100,) and clip.mfcc.shape == (n, 1, 40, 40)

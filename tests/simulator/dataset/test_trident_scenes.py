@@ -78,7 +78,10 @@ def test_twins_are_identical_outside_the_drones_own_signatures():
 
 def test_generated_clips_record_scene_split_and_twin(tmp_path):
     cfg = _cfg(n_scenes=3, n_test_scenes=1, n_val_scenes=1)
-    frames = lambda s, seed, n, w, h, layout=None: np.full((n, h, w, 3), 120, np.uint8)
+
+    def frames(s, seed, n, w, h, layout=None):
+        return np.full((n, h, w, 3), 120, np.uint8)
+
     out = tr.generate_trident(cfg, tmp_path / "d", seed=2, progress=False, render_frames=frames)
     man = json.loads((out / "manifest.json").read_text())
     by_clip = {c["clip"]: c for c in man["clips"]}

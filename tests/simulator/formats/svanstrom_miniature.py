@@ -128,7 +128,8 @@ def write_miniature(root: Path, *, seed: int = 0, numbers: tuple[int, ...] = (1,
                 stem = f"{prefix}{cls}_{k:03d}"
                 (data / folder / f"{stem}.mp4").write_bytes(video_bytes(frames))
                 (data / folder / f"{stem}_LABELS.mat").write_bytes(label_mat_bytes(boxes))
-                rows.append((sensor, cls, k, ("CLOSE", "MEDIUM", "DISTANT")[k % 3], k, "F450" if cls == "DRONE" else None))
+                rows.append((sensor, cls, k, ("CLOSE", "MEDIUM", "DISTANT")[k % 3], k, "F450" if cls == "DRONE"
+                             else None))
     (data / "Audio").mkdir(parents=True, exist_ok=True)
     t = np.arange(int(44_100 * audio_s)) / 44_100
     for cls in ("BACKGROUND", "DRONE", "HELICOPTER"):

@@ -1,14 +1,14 @@
-"""Exporters round-trip through the evids.data loaders: native labels -> Anti-UAV (thermal and
+"""Exporters round-trip through the simulator.formats readers: native labels -> Anti-UAV (thermal and
 RGB-T), MM-UAV (every frame and every k-th frame, with/without distractors), COCO-video."""
 import json
 
 import numpy as np
 import pytest
 
-from evids.data import antiuav as antiuav_loader
-from evids.data import coco as coco_loader
-from evids.data import mot as mot_loader
 from simulator.dataset.generate import export_dataset, generate_dataset, load_manifest
+from simulator.formats import antiuav as antiuav_loader
+from simulator.formats import coco as coco_loader
+from simulator.formats import mot as mot_loader
 from simulator.formats.antiuav import primary_target_id
 from simulator.formats.native import load_labels, read_image
 from tests.simulator.dataset.gen_helpers import write_tiny
@@ -185,7 +185,8 @@ def test_coco_round_trip_with_flagged_distractors(dataset, tmp_path):
                 frames = data.frames(video_id)
                 assert [im["frame_id"] for im in frames] == [1, 2, 3, 4]
                 assert frames[0]["prev_image_id"] == -1 and frames[-1]["next_image_id"] == -1
-                assert all(a["next_image_id"] == b["id"] and b["prev_image_id"] == a["id"] for a, b in zip(frames, frames[1:]))
+                assert all(a["next_image_id"] == b["id"] and b["prev_image_id"] == a["id"]
+                           for a, b in zip(frames, frames[1:]))
                 assert data.image_path(frames[2]).is_file()
                 truth = {}
                 for f in labels[e["name"]]["frames"]:

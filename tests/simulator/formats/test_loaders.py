@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from evids.data import antiuav, coco, mot
+from simulator.formats import antiuav, coco, mot
 
 
 def _touch_frames(folder, n, digits=6, ext=".jpg"):
@@ -18,7 +18,8 @@ def _touch_frames(folder, n, digits=6, ext=".jpg"):
 def test_antiuav_410_accepts_empty_and_zero_absent_markers(tmp_path):
     seq = tmp_path / "test" / "20190925_101846_1_1"
     _touch_frames(seq, 4)
-    (seq / "IR_label.json").write_text(json.dumps({"exist": [1, 0, 0, 1], "gt_rect": [[10, 20, 5, 4], [], [0], [11.5, 20, 5, 4]]}))
+    (seq / "IR_label.json").write_text(json.dumps({"exist": [1, 0, 0, 1],
+                                                   "gt_rect": [[10, 20, 5, 4], [], [0], [11.5, 20, 5, 4]]}))
     track = antiuav.load_sequence(seq)["infrared"]
     assert track.exist.tolist() == [1, 0, 0, 1]
     assert track.boxes == [[10.0, 20.0, 5.0, 4.0], None, None, [11.5, 20.0, 5.0, 4.0]]
@@ -76,9 +77,12 @@ def test_coco_video_tracks_follow_frame_ids_and_skip_flagged_distractors(tmp_pat
                     "next_image_id": -1, "width": 640, "height": 512},
                    {"id": 10, "file_name": "0001/ir_frame/0001.jpg", "frame_id": 1, "video_id": 1, "prev_image_id": -1,
                     "next_image_id": 11, "width": 640, "height": 512}],
-        "annotations": [{"id": 1, "image_id": 10, "category_id": 1, "track_id": 4, "bbox": [1, 2, 3, 4], "area": 12, "iscrowd": 0},
-                        {"id": 2, "image_id": 11, "category_id": 1, "track_id": 4, "bbox": [2, 2, 3, 4], "area": 12, "iscrowd": 0},
-                        {"id": 3, "image_id": 11, "category_id": 2, "track_id": 5, "bbox": [9, 9, 2, 2], "area": 4, "iscrowd": 0}],
+        "annotations": [{"id": 1, "image_id": 10, "category_id": 1, "track_id": 4, "bbox": [1, 2, 3, 4], "area": 12,
+                         "iscrowd": 0},
+                        {"id": 2, "image_id": 11, "category_id": 1, "track_id": 4, "bbox": [2, 2, 3, 4], "area": 12,
+                         "iscrowd": 0},
+                        {"id": 3, "image_id": 11, "category_id": 2, "track_id": 5, "bbox": [9, 9, 2, 2], "area": 4,
+                         "iscrowd": 0}],
         "videos": [{"id": 1, "file_name": "0001"}],
         "categories": [{"id": 1, "name": "drone"}, {"id": 2, "name": "bird", "distractor": True}],
     }
@@ -101,7 +105,8 @@ def test_coco_video_tracks_follow_frame_ids_and_skip_flagged_distractors(tmp_pat
 from simulator.formats.validation import FormatError, SkippedRowsWarning  # noqa: E402
 
 ANTIUAV_BAD = [
-    ("exist 1 with a None box", {"exist": [1, 1], "gt_rect": [[1, 2, 3, 4], None]}, "gt_rect\\[1\\]: exist is 1 but box"),
+    ("exist 1 with a None box", {"exist": [1, 1], "gt_rect": [[1, 2, 3, 4], None]},
+     "gt_rect\\[1\\]: exist is 1 but box"),
     ("exist 1 with []", {"exist": [1, 1], "gt_rect": [[1, 2, 3, 4], []]}, "gt_rect\\[1\\]"),
     ("exist 7", {"exist": [1, 7], "gt_rect": [[1, 2, 3, 4], [1, 2, 3, 4]]}, "exist\\[1\\]: must be 0 or 1, got 7"),
     ("exist -1", {"exist": [-1, 1], "gt_rect": [[1, 2, 3, 4], [1, 2, 3, 4]]}, "exist\\[0\\]: must be 0 or 1, got -1"),
@@ -138,7 +143,8 @@ ANTIUAV_BROKEN = [
     ("missing gt_rect", '{"exist": [1, 1]}', "key 'gt_rect': missing"),
     ("exist not a list", '{"exist": 1, "gt_rect": []}', "key 'exist': must be a list"),
     ("length mismatch", '{"exist": [1, 0, 1], "gt_rect": [[1, 2, 3, 4], []]}', "3 exist flags but 2 gt_rect entries"),
-    ("labels vs frames", '{"exist": [1, 0, 0], "gt_rect": [[1, 2, 3, 4], [], []]}', "frame count: 2 frames but 3 labels"),
+    ("labels vs frames", '{"exist": [1, 0, 0], "gt_rect": [[1, 2, 3, 4], [], []]}',
+     "frame count: 2 frames but 3 labels"),
 ]
 
 
@@ -166,9 +172,11 @@ def test_antiuav_rgbt_public_miniature(tmp_path):
         (seq / modality).mkdir(parents=True)
         for i in range(3):
             (seq / modality / f"{modality}I{i:04d}.jpg").write_bytes(b"")
-        (seq / f"{modality}.json").write_text(json.dumps({"exist": [1, 0, 1], "gt_rect": [[1, 2, 3, 4], [], [2, 2, 3, 4]]}))
+        (seq / f"{modality}.json").write_text(json.dumps({"exist": [1, 0, 1],
+                                                          "gt_rect": [[1, 2, 3, 4], [], [2, 2, 3, 4]]}))
     tracks = antiuav.load_dataset(tmp_path)["20190925_111757_1_4"]
-    assert [p.name for p in tracks["infrared"].frames] == ["infraredI0000.jpg", "infraredI0001.jpg", "infraredI0002.jpg"]
+    assert [p.name for p in tracks["infrared"].frames] == ["infraredI0000.jpg", "infraredI0001.jpg",
+                                                           "infraredI0002.jpg"]
     assert tracks["visible"].boxes == [[1.0, 2.0, 3.0, 4.0], None, [2.0, 2.0, 3.0, 4.0]]
     (seq / "infrared" / "infraredI0001.jpg").unlink()
     with pytest.raises(FormatError, match="frame 1 is missing"):
@@ -196,7 +204,8 @@ def _mot_seq(tmp_path, extra_row, n=4, ext=".jpg", im_ext=".jpg", length=None):
     _touch_frames(seq / "ir_frame", n, digits=4, ext=ext)
     (seq / "gt_ir").mkdir()
     (seq / "gt_ir" / "gt.txt").write_text("1,1,10,20,5,5,1,0,1\n" + extra_row + "\n3,1,11,20,5,5,1,0,1\n")
-    (seq / "seqinfo-ir.ini").write_text(f"[Sequence]\nname=0001\nimDir=ir_frame\nframeRate=30\nseqLength={length or n}\n"
+    (seq / "seqinfo-ir.ini").write_text("[Sequence]\nname=0001\nimDir=ir_frame\nframeRate=30\nseqLength="
+                                        f"{length or n}\n"
                                         f"imWidth=640\nimHeight=512\nimExt={im_ext}\n")
     return seq
 
@@ -241,7 +250,8 @@ def test_mot_evaluation_layout_miniature(tmp_path):
 
 
 COCO_BAD = [
-    ("dangling image id", lambda d: d["annotations"][0].update(image_id=99), "annotations\\[0\\].image_id: 99 names no image"),
+    ("dangling image id", lambda d: d["annotations"][0].update(image_id=99),
+     "annotations\\[0\\].image_id: 99 names no image"),
     ("duplicate image id", lambda d: d["images"][1].update(id=10), "images\\[1\\].id: duplicate id 10"),
     ("duplicate annotation id", lambda d: d["annotations"][1].update(id=1), "annotations\\[1\\].id: duplicate id 1"),
     ("unknown category", lambda d: d["annotations"][0].update(category_id=7), "category_id: 7 names no category"),

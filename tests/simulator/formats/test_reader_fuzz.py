@@ -18,7 +18,8 @@ number = st.one_of(st.integers(-5, 50), st.floats(allow_nan=True, allow_infinity
                    st.sampled_from(["1", "x", "", "nan"]))
 json_value = st.recursive(st.one_of(st.none(), st.booleans(), st.integers(-3, 9), st.floats(allow_nan=False),
                                     st.text(max_size=3)),
-                          lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=3), inner,
+                          lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                                  st.dictionaries(st.text(max_size=3), inner,
                                                                                                  max_size=3)),
                           max_leaves=12)
 
@@ -58,7 +59,8 @@ def test_antiuav_label_fuzz(tmp_path_factory, data):
 @SETTINGS
 @example(data={"images": [{"id": 1}], "annotations": [{"id": 1, "image_id": [1], "bbox": [1, 2, 3, 4]}]})
 @example(data={"images": [{"id": 1, "video_id": {}}], "annotations": [], "videos": [{"id": 1}]})
-@example(data={"images": [{"id": 1}], "annotations": [{"id": 1, "image_id": 1, "category_id": [1], "bbox": [1, 2, 3, 4]}],
+@example(data={"images": [{"id": 1}],
+               "annotations": [{"id": 1, "image_id": 1, "category_id": [1], "bbox": [1, 2, 3, 4]}],
                "categories": [{"id": 1}]})
 @given(data=st.fixed_dictionaries({"images": st.lists(st.dictionaries(st.sampled_from(["id", "frame_id", "video_id"]),
                                                                         json_value, max_size=3), max_size=3),

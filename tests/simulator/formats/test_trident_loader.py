@@ -37,7 +37,8 @@ def test_round_trip_of_a_generated_clip(tiny_trident):
     assert [s.segment_index for s in segs] == [0, 1, 2, 3]
     for s, seg in enumerate(segs):
         assert seg.label == LABELS.index("Drone") == 0 and seg.clip_id == "Drone/hover/1"
-        assert seg.audio_mfcc.shape == (1, 40, 40) and seg.video.shape == (7, 112, 112, 3) and seg.rf.shape == (112, 112)
+        assert (seg.audio_mfcc.shape == (1, 40, 40) and seg.video.shape == (7, 112, 112, 3)
+                and seg.rf.shape == (112, 112))
         assert np.allclose(seg.audio_mfcc, clip.mfcc[s], atol=1e-4)           # same WAV values -> same MFCC
         assert np.array_equal(np.round(seg.rf * 255).astype(np.uint8), clip.rf_images[s])   # PNG is lossless
         levels = seg.video.reshape(7, -1).mean(axis=1)
@@ -64,7 +65,8 @@ def test_public_layout_variants(tmp_path):
             img = np.full((224, 224, 3), 8 * (i - 1), np.uint8)
             cv2.imwrite(str(tmp_path / "video" / label / "site_a" / f"{n}_frame_{i}.jpg"), img)
         for s in range(5):                                       # one more RF image than needed
-            cv2.imwrite(str(tmp_path / "rf" / label / "site_a" / f"{n}_spec_{s}.jpg"), np.full((112, 112, 3), 40 * s, np.uint8))
+            cv2.imwrite(str(tmp_path / "rf" / label / "site_a" / f"{n}_spec_{s}.jpg"),
+                        np.full((112, 112, 3), 40 * s, np.uint8))
     # a clip present in audio only is skipped
     soundfile.write(str(tmp_path / "audio" / "Drone" / "site_a" / "99.wav"), np.zeros(44100), 44100)
     ds = TridentDataset(tmp_path)
@@ -128,13 +130,15 @@ def generated(tmp_path_factory):
     def frames(scenario, seed, n, w, h, layout=None):
         return _frames(n, w)
 
-    hover = {"name": "d", "kind": "quadcopter", "size_m": 0.45, "trajectory": {"kind": "hover", "center_m": [0, 60, 15]}}
+    hover = {"name": "d", "kind": "quadcopter", "size_m": 0.45,
+             "trajectory": {"kind": "hover", "center_m": [0, 60, 15]}}
     bird = {"name": "b", "kind": "bird", "size_m": 0.4, "trajectory": {"kind": "hover", "center_m": [0, 50, 15]}}
     rig = {"position_m": [0, 0, 1.5], "look_at_m": [0, 60, 15]}
     cfg = tr.load_trident_config({
         "name": "tiny", "clip_duration_s": 1.0, "save_iq": True, "rf": {"capture_samples": 112 * 40},
         "clips": [{"scenario": {"name": "quad", "duration_s": 1.0, "targets": [hover], "camera_rig": rig}, "count": 3},
-                  {"scenario": {"name": "birds", "duration_s": 1.0, "targets": [bird], "camera_rig": rig}, "count": 2}]})
+                  {"scenario": {"name": "birds", "duration_s": 1.0, "targets": [bird], "camera_rig": rig},
+                   "count": 2}]})
     return tr.generate_trident(cfg, base / "ds", 4, progress=False, render_frames=frames)
 
 
@@ -161,8 +165,10 @@ def test_export_public_layout_and_read_it_back(generated, tmp_path):
     # clip 2 (of 1, 2, 3) and background clip 5 (of 4, 5)
     audio = sorted(n for n in names if n.startswith("Audio/"))
     assert audio == ["Audio/Test/Background/birds/5.wav", "Audio/Test/Drone/quad/2.wav",
-                     "Audio/Train/Background/birds/4.wav", "Audio/Train/Drone/quad/1.wav", "Audio/Train/Drone/quad/3.wav"]
-    assert "Video/Test/Drone/quad/Images/2_frame_1.jpg" in names and "Video/Test/Drone/quad/Images/2_frame_28.jpg" in names
+                     "Audio/Train/Background/birds/4.wav", "Audio/Train/Drone/quad/1.wav",
+                     "Audio/Train/Drone/quad/3.wav"]
+    assert "Video/Test/Drone/quad/Images/2_frame_1.jpg" in names and ("Video/Test/Drone/quad/Images/"
+                                                                      "2_frame_28.jpg") in names
     assert "Video/Train/Drone/quad/Images_Extracted/1_frame_28.jpg" in names
     assert "Video/Train/Drone/quad/Images_Extracted/1_frame_0.jpg" not in names
     assert "Video/Train/Drone/quad/Images_Extracted/1_frame_29.jpg" not in names
@@ -228,7 +234,8 @@ def test_hand_written_public_miniature(tmp_path):
 CORRUPTIONS = [
     ("missing video frame", lambda wav, video, rf: (video / "1_frame_100.jpg").unlink(), "index 100 is missing"),
     ("missing RF image", lambda wav, video, rf: (rf / "1_frame_7.jpg").unlink(), "index 7 is missing"),
-    ("last RF image missing", lambda wav, video, rf: (rf / "1_frame_40.jpg").unlink(), "39 files but the clip needs 40"),
+    ("last RF image missing", lambda wav, video, rf: (rf / "1_frame_40.jpg").unlink(),
+     "39 files but the clip needs 40"),
     ("truncated WAV", lambda wav, video, rf: wav.write_bytes(wav.read_bytes()[: len(wav.read_bytes()) // 2]),
      "truncated WAV"),
     ("garbage WAV", lambda wav, video, rf: wav.write_bytes(b"RIFF0000WAVEjunk"), "not a readable WAV"),

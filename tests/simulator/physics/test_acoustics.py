@@ -248,7 +248,8 @@ def test_ground_effect_sign_and_size_on_a_tone():
     free = ac.propagate(tone, np.full(n, 206.2), FS, 293.15, 0.7)
     hard = ac.propagate(tone, np.full(n, 206.2), FS, 293.15, 0.7, ground_factor=0.0, **kw)
     soft = ac.propagate(tone, np.full(n, 206.2), FS, 293.15, 0.7, ground_factor=1.0, **kw)
-    lvl = {k: 10 * np.log10(np.mean(v[FS // 4: -FS // 4] ** 2)) for k, v in (("free", free), ("hard", hard), ("soft", soft))}
+    lvl = {k: 10 * np.log10(np.mean(v[FS // 4: -FS // 4] ** 2))
+           for k, v in (("free", free), ("hard", hard), ("soft", soft))}
     assert lvl["hard"] - lvl["free"] == pytest.approx(3.0, abs=0.05)          # reflection adds 3 dB
     expected_soft = -14.0 * np.exp(-0.46 * 2.25) * (1 - np.exp(-4.0))         # 500 Hz over porous ground
     assert lvl["soft"] - lvl["free"] == pytest.approx(expected_soft, abs=0.05)
@@ -302,7 +303,8 @@ def test_helicopter_level_and_low_frequency_weight():
     assert ac.pa_to_db_spl(np.sqrt(np.mean(x ** 2))) == pytest.approx(ac.HELICOPTER_DB_1M, abs=1e-6)
     spec = np.abs(np.fft.rfft(x)) ** 2
     f = np.fft.rfftfreq(n, 1 / FS)
-    assert spec[f < 1000].sum() > 3 * spec[f > 4000].sum()     # rotor noise is low-frequency weighted (20 draws: 4.7-39x)
+    assert (spec[f < 1000].sum() > 3
+            * spec[f > 4000].sum())     # rotor noise is low-frequency weighted (20 draws: 4.7-39x)
     y = ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0))
     assert x.tobytes() == y.tobytes()
 

@@ -47,7 +47,8 @@ def test_pointing_error_has_the_asked_rms_and_zero_lag_follows_the_command():
 def test_a_track_loss_holds_the_head_then_reacquires():
     fps = 30.0
     aim, origin = _circle(600, 4.0, fps)
-    fwd, lost = pan_tilt_pointing(aim, origin, Tracking(lag_s=0.2, error_deg=0.0, loss_rate_hz=0.3, loss_s=(1.0, 1.0)), fps,
+    fwd, lost = pan_tilt_pointing(aim, origin, Tracking(lag_s=0.2, error_deg=0.0, loss_rate_hz=0.3, loss_s=(1.0, 1.0)),
+                                  fps,
                                   np.random.default_rng(0), np.random.default_rng(7))
     assert lost.any() and not lost.all()
     i = np.flatnonzero(lost)

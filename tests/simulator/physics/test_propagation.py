@@ -8,7 +8,7 @@ from simulator.physics import propagation as prop
 from simulator.seeding import rng_for
 
 # NumPy >= 2.0 names it trapezoid, 1.24-1.26 (allowed by pyproject) trapz: the same rule
-_trapezoid = getattr(np, "trapezoid", None) or np.trapz
+_trapezoid = getattr(np, "trapezoid", None) or np.trapz  # noqa: NPY201 (numpy < 2 has only trapz)
 
 F = 2.44e9
 

@@ -106,7 +106,8 @@ def test_hop_statistics_per_capture_match_analytic(packets_per_hop):
     assert abs(counts.mean() - exp["mean"]) < 4 * counts.std() / np.sqrt(n) * (2.0 if packets_per_hop > 1 else 1.0)
     assert np.mean(counts <= 1) > 0.75                         # most captures hold 0 or 1 control burst
     if packets_per_hop == 1:
-        for key, observed in (("p0", np.mean(counts == 0)), ("p1", np.mean(counts == 1)), ("p2plus", np.mean(counts >= 2))):
+        for key, observed in (("p0", np.mean(counts == 0)), ("p1", np.mean(counts == 1)),
+                              ("p2plus", np.mean(counts >= 2))):
             sigma = np.sqrt(exp[key] * (1 - exp[key]) / n)
             assert abs(observed - exp[key]) < 4 * sigma + 1e-3, key
 
@@ -125,9 +126,11 @@ def test_receiver_sees_exactly_the_scheduled_bursts():
     n = cfg.capture_samples
     for a in cap.annotations:
         s, first = divmod(a["core:sample_start"], n)
-        c0, c1 = int(first / n * rf.SPECTROGRAM_PX), int(np.ceil((first + a["core:sample_count"]) / n * rf.SPECTROGRAM_PX))
+        c0, c1 = int(first / n * rf.SPECTROGRAM_PX), int(np.ceil((first + a["core:sample_count"]) / n
+                                                                 * rf.SPECTROGRAM_PX))
         # chirp edges splatter a little in 22.5 us frames: allow 4 bins (0.7 MHz) around the band, 1 column
-        rows = (row_hz >= a["core:freq_lower_edge"] - 4 * cfg.bin_hz) & (row_hz <= a["core:freq_upper_edge"] + 4 * cfg.bin_hz)
+        rows = (row_hz >= a["core:freq_lower_edge"] - 4 * cfg.bin_hz) & (row_hz <= a["core:freq_upper_edge"] + 4
+                                                                         * cfg.bin_hz)
         expected[s][np.ix_(rows, np.arange(max(c0 - 1, 0), min(c1 + 1, rf.SPECTROGRAM_PX)))] = True
         inner = (row_hz > a["core:freq_lower_edge"] + cfg.bin_hz) & (row_hz < a["core:freq_upper_edge"] - cfg.bin_hz)
         cols = np.arange(c0 + 1, c1 - 1)
@@ -135,7 +138,8 @@ def test_receiver_sees_exactly_the_scheduled_bursts():
         assert block.any(axis=0).all() and block.any(axis=1).all()   # a chirp sweeps the band in every column
     assert not (strong & ~expected).any()                        # and nothing else is
     assert col_s == pytest.approx(22.5e-6)
-    silent = rf.synthesize_rf(_timeline(300.0, duration_s=4.2), 5, starts, config=cfg, rf_silent=True, clip_duration_s=4.0)
+    silent = rf.synthesize_rf(_timeline(300.0, duration_s=4.2), 5, starts, config=cfg, rf_silent=True,
+                              clip_duration_s=4.0)
     assert not (silent.spectrogram_dbm > cfg.noise_per_bin_dbm + 20.0).any()
     assert not silent.observable.any() and not silent.annotations
 
@@ -244,5 +248,6 @@ def test_same_seed_same_bytes_different_seed_differs():
     assert not np.array_equal(a.iq, c.iq)
     assert a.iq.dtype == np.complex64
     # the channel model draws from its own stream: switching fading off keeps every hop and burst time
-    d = rf.synthesize_rf(_timeline(250.0), 7, STARTS, config=cfg.model_copy(update={"fading": "none"}), clip_duration_s=1.0)
+    d = rf.synthesize_rf(_timeline(250.0), 7, STARTS, config=cfg.model_copy(update={"fading": "none"}),
+                         clip_duration_s=1.0)
     assert [x["core:sample_start"] for x in d.annotations] == [x["core:sample_start"] for x in a.annotations]

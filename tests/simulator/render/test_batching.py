@@ -70,7 +70,8 @@ def test_roi_render_equals_full_render_inside_and_outside_the_tiles(swarm):
         cover[y0:y1, x0:x1] |= c.coverage > 0
     sky_in_tiles &= ~cover
     assert np.array_equal(a.rgb_linear[sky_in_tiles], b.rgb_linear[sky_in_tiles])
-    rgb_rel = np.abs(a.rgb_linear[~inside_rgb] - b.rgb_linear[~inside_rgb]) / np.maximum(b.rgb_linear[~inside_rgb], 1e-3)
+    rgb_rel = np.abs(a.rgb_linear[~inside_rgb]
+                     - b.rgb_linear[~inside_rgb]) / np.maximum(b.rgb_linear[~inside_rgb], 1e-3)
     assert rgb_rel.max() < 2e-3
     for c in a.coverage["rgb"]:
         x0, y0, x1, y1 = c.region
@@ -89,7 +90,8 @@ def _twin_cameras(scenario):
                                              "hfov_deg": rgb.hfov_deg, "spp": rgb.spp})
     offset = rig.thermal_offset.model_copy(update={"translation_m": (0.0, 0.0, 0.0), "yaw_deg": 0.0,
                                                    "pitch_deg": 0.0, "roll_deg": 0.0})
-    return scenario.model_copy(update={"camera_rig": rig.model_copy(update={"thermal": thermal, "thermal_offset": offset})})
+    return scenario.model_copy(update={"camera_rig": rig.model_copy(update={"thermal": thermal,
+                                                                            "thermal_offset": offset})})
 
 
 def test_identically_placed_rgb_and_thermal_cameras_get_identical_boxes():
@@ -110,7 +112,9 @@ def test_identically_placed_rgb_and_thermal_cameras_get_identical_boxes():
 
 def _single_target(distance_m: float, size_m: float = 0.5):
     scenario = load_scenario("clear_day_quad")
-    target = scenario.targets[0].model_copy(update={"size_m": size_m, "trajectory": Hover(center_m=(0.3, distance_m, 12.0), drift_m=0.05)})
+    target = scenario.targets[0].model_copy(update={"size_m": size_m,
+                                                    "trajectory": Hover(center_m=(0.3, distance_m, 12.0),
+                                                                        drift_m=0.05)})
     rig = scenario.camera_rig.model_copy(update={"track_target": None, "look_at_m": (0.0, distance_m, 12.0)})
     return shrink(scenario.model_copy(update={"targets": [target], "camera_rig": rig}), 320, 256, spp=1)
 

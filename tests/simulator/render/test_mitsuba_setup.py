@@ -14,5 +14,6 @@ def test_old_llvm_is_never_chosen(monkeypatch):
                                                        "/usr/lib/x86_64-linux-gnu/libLLVM-15.so.1"]}
     monkeypatch.setattr(setup.glob, "glob", lambda pattern: fake.get(pattern, []))
     assert setup.find_libllvm() is None
-    fake["/usr/lib/llvm-*/lib/libLLVM*.so*"] = ["/usr/lib/llvm-16/lib/libLLVM-16.so", "/usr/lib/llvm-19/lib/libLLVM-19.so"]
+    fake["/usr/lib/llvm-*/lib/libLLVM*.so*"] = ["/usr/lib/llvm-16/lib/libLLVM-16.so",
+                                                "/usr/lib/llvm-19/lib/libLLVM-19.so"]
     assert setup.find_libllvm() == "/usr/lib/llvm-19/lib/libLLVM-19.so"

@@ -8,7 +8,7 @@ import numpy as np
 from scenes import load_scenario
 from scenes.schema import Hover
 from simulator.dataset.sequence import render_sequence
-from simulator.formats.antiuav import read_antiuav_labels
+from simulator.formats.antiuav import read_label_file
 from simulator.physics.timeline import build_timeline
 from simulator.render.labels import coverage_labels, tight_box
 from simulator.render.renderer import SequenceRenderer
@@ -100,7 +100,9 @@ def test_registered_cameras_agree_within_one_pixel_after_scaling():
     scenario = load_scenario("clear_day_quad")
     rig = scenario.camera_rig
     near = scenario.targets[0].model_copy(update={"trajectory": Hover(center_m=(0.8, 40, 11.6), drift_m=0.1)})
-    scenario = scenario.model_copy(update={"targets": [near], "camera_rig": rig.model_copy(update={"track_target": None, "look_at_m": (0, 40, 11)})})
+    scenario = scenario.model_copy(update={"targets": [near],
+                                           "camera_rig": rig.model_copy(update={"track_target": None,
+                                                                                "look_at_m": (0, 40, 11)})})
     scenario = shrink(scenario, 320, 256, spp=2, thermal_width_px=160, thermal_height_px=128)
     _, out = _render_frames(scenario, 1, [0])
     fb = out[0]
@@ -139,7 +141,7 @@ def test_antiuav_output_has_the_benchmark_field_semantics(tmp_path):
     for flag, rect in zip(data["exist"], data["gt_rect"]):
         assert (flag == 1 and len(rect) == 4 and rect[2] > 0 and rect[3] > 0) or (flag == 0 and rect == [])
     assert 0 in data["exist"] and 1 in data["exist"]
-    exist, rects = read_antiuav_labels(written["antiuav_visible"] / "visible.json")
+    exist, rects = read_label_file(written["antiuav_visible"] / "visible.json")
     assert len(exist) == len(rects) == len(frames)
     native = json.loads((written["native"] / "labels.json").read_text())
     assert [f["thermal"][0]["exist"] for f in native["frames"]] == data["exist"]

@@ -74,7 +74,8 @@ def test_scalar_variant_render_matches_llvm(tmp_path, monkeypatch):
     env = {**os.environ, "EVIDS_MITSUBA_VARIANT": "scalar_rgb", "PYTHONPATH": str(ROOT)}
     target = json.dumps(str(tmp_path / "s.npz"))
     script = f"from tests.simulator.render.test_scalar_variant import render_tiny; render_tiny({target})"
-    proc = subprocess.run([sys.executable, "-c", script], env=env, cwd=ROOT, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run([sys.executable, "-c", script], env=env, cwd=ROOT, capture_output=True, text=True,
+                          timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     monkeypatch.delenv("EVIDS_MITSUBA_VARIANT", raising=False)
     from simulator.render import renderer

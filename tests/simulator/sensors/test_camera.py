@@ -152,7 +152,8 @@ def test_rgb_shot_and_read_noise_follow_the_electron_count():
     assert with_read.var() == pytest.approx(1e4 + 2500.0, rel=0.05)
     dark = cam.shot_noise(np.full((160, 200), 20.0), rng, read_noise_e=3.0)
     assert dark.mean() == pytest.approx(20.0, abs=0.2) and dark.var() == pytest.approx(29.0, rel=0.06)
-    assert sensor.full_well_e == pytest.approx(p.full_well_e * (p.sensor_width_mm * 1000 / 200 / p.native_pixel_pitch_um) ** 2)
+    assert sensor.full_well_e == pytest.approx(p.full_well_e
+                                               * (p.sensor_width_mm * 1000 / 200 / p.native_pixel_pitch_um) ** 2)
 
 
 def test_rgb_auto_exposure_caps_at_the_frame_period_and_raises_gain_in_the_dark():
@@ -244,7 +245,8 @@ def test_kernel_filter_does_not_depend_on_the_opencv_thread_count():
     import cv2
 
     image = np.random.default_rng(2).random((130, 150)).astype(np.float32)
-    filters = [cam.KernelFilter(cam.psf_kernel(9.64, 2.8, 0.61, 0.0)), cam.KernelFilter(cam.psf_kernel(12.0, 1.0, 10.0, 0.0))]
+    filters = [cam.KernelFilter(cam.psf_kernel(9.64, 2.8, 0.61, 0.0)),
+               cam.KernelFilter(cam.psf_kernel(12.0, 1.0, 10.0, 0.0))]
     before = cv2.getNumThreads()
     try:
         outs = []
@@ -289,7 +291,8 @@ def test_trail_kernel_sums_the_weights_and_runs_along_the_motion():
     k = cam.trail_kernel(np.array([4.0, 0.0]), frac, weights)
     assert k.shape[0] == 3 and k.sum() == pytest.approx(1.0, abs=1e-6)
     centre = k.shape[1] // 2
-    assert np.all(k[1, :centre] == 0) and k[1, centre:centre + 5].sum() == pytest.approx(1.0, abs=1e-6)   # out[p] reads in[p + o], o >= 0
+    assert (np.all(k[1, :centre] == 0)
+            and k[1, centre:centre + 5].sum() == pytest.approx(1.0, abs=1e-6))   # out[p] reads in[p + o], o >= 0
 
 
 @pytest.mark.parametrize("kelvin_per_count", [0.01, 0.04, 0.0123])
@@ -348,12 +351,13 @@ def test_plateau_agc_and_camcorder_tone_are_deterministic_and_stateful():
 
 
 def test_gaussian_blur_adds_its_variance_to_the_psf():
-    sharp = cam.psf_kernel(12.0, 1.0, 0.5, 0.0)                       # diffraction negligible: a point stays in its pixel
+    sharp = cam.psf_kernel(12.0, 1.0, 0.5, 0.0)  # diffraction negligible: a point stays in its pixel
     assert sharp[sharp.shape[0] // 2, sharp.shape[1] // 2] > 0.98
     soft = cam.psf_kernel(12.0, 1.0, 0.5, 0.0, 12.0)                   # sigma = 1 pixel
     r = soft.shape[0] // 2
     x = np.arange(-r, r + 1)
     var_x = float((soft.sum(axis=0) * x ** 2).sum())
-    assert soft.sum() == pytest.approx(1.0) and var_x == pytest.approx(1.0 + 1 / 12, rel=0.04)   # sigma^2 + binning (Sheppard)
+    assert (soft.sum() == pytest.approx(1.0)
+            and var_x == pytest.approx(1.0 + 1 / 12, rel=0.04))   # sigma^2 + binning (Sheppard)
     default = cam.psf_kernel(12.0, 1.0, 10.0, 0.0)
     assert np.array_equal(default, cam.psf_kernel(12.0, 1.0, 10.0, 0.0, 0.0))   # 0 = the former kernel

@@ -129,7 +129,8 @@ def test_quick_track_runs_under_30_s_and_separates_easy_classes(tmp_path):
         lo, hi = res["a_real"]["roc_auc_ci95"]
         assert lo <= hi <= 1.0
         assert 0.0 <= res["b_synthetic"]["helicopter_called_drone"] <= 1.0
-        assert res["ratio_synthetic_over_real_auc"] == pytest.approx(res["b_synthetic"]["roc_auc"] / res["a_real"]["roc_auc"])
+        assert res["ratio_synthetic_over_real_auc"] == pytest.approx(res["b_synthetic"]["roc_auc"]
+                                                                     / res["a_real"]["roc_auc"])
     drone = summary["statistics"]["DRONE"]["evaluation"]
     assert drone["f0_hz"]["real_q25"] >= 140 and drone["pitched"]["real_median"] == 1.0
     assert summary["statistics"]["BACKGROUND"]["evaluation"]["pitched"]["real_median"] == 0.0

@@ -65,12 +65,14 @@ def test_quick_run_writes_summary_page_and_sheets(quick_run):
 
 def test_strict_stops_at_the_damaged_clip_and_bad_input_exits_2(quick_run, tmp_path):
     real, _, _ = quick_run
-    proc = _cli("sim2real", "--real", str(real), "--out", str(tmp_path / "strict"), "--quick", "--strict", "--no-progress")
+    proc = _cli("sim2real", "--real", str(real), "--out", str(tmp_path / "strict"), "--quick", "--strict",
+                "--no-progress")
     assert proc.returncode == 2 and "IR_BIRD_004" in proc.stderr
     proc = _cli("sim2real", "--real", str(tmp_path / "nowhere"), "--out", str(tmp_path / "x"))
     assert proc.returncode == 2 and "--real" in proc.stderr
     bad = tmp_path / "bad.yaml"
-    bad.write_text("name: x\nvisual: {classes: {DRONE: {generation: {}, sequences: 1}, KITE: {generation: {}, sequences: 1}}}\n")
+    bad.write_text("name: x\nvisual: {classes: {DRONE: {generation: {}, sequences: 1}, KITE: {generation: {}, "
+                   "sequences: 1}}}\n")
     proc = _cli("sim2real", "--real", str(real), "--out", str(tmp_path / "y"), "--config", str(bad))
     assert proc.returncode == 2 and "KITE" in proc.stderr
 
