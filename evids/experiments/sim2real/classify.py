@@ -137,15 +137,14 @@ def _interval(res) -> dict[str, float]:
     return {"estimate": res.estimate, "ci_low": res.ci_low, "ci_high": res.ci_high}
 
 
-_FORKED: dict[str, Any] = {}
-
-
 def _condition_job(name: str, seed: int) -> np.ndarray:
     """Train condition ``name`` with ``seed`` (one torch thread) and predict the test crops."""
     import torch
 
     torch.set_num_threads(1)
-    f = _FORKED
+    from simulator.jobs import job_context
+
+    f = job_context()
     net = train_cnn(f["sets"][name], f["n_classes"], seed=seed, **f["train"])
     return predict(net, f["test"].x).argmax(1)
 
@@ -159,12 +158,9 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
     from evids.experiments.pipeline import forked_map
 
     jobs = [(name, int(seed)) for name, train in sets.items() if len(train.y) for seed in seeds]
-    _FORKED.update(sets=sets, test=test, n_classes=n_classes,
+    context = dict(sets=sets, test=test, n_classes=n_classes,
                    train=dict(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate))
-    try:
-        done = {jobs[i]: p for i, p in forked_map(_condition_job, jobs, workers, label)}
-    finally:
-        _FORKED.clear()
+    done = {jobs[i]: p for i, p in forked_map(_condition_job, jobs, workers, label, context=context)}
     preds: dict[str, np.ndarray] = {}      # condition -> (n_seeds, n_test) predicted class
     per_seed: dict[str, list[float]] = {}
     for name in dict.fromkeys(n for n, _ in jobs):
@@ -228,12 +224,9 @@ def domain_classifier(real: CropSet, synthetic: CropSet, *, seeds: Sequence[int]
     test_y = np.concatenate([np.zeros(rt.sum(), np.int64), np.ones(st.sum(), np.int64)])
     from evids.experiments.pipeline import forked_map
 
-    _FORKED.update(sets={"domain": train}, test=CropSet(test_x, test_y, np.zeros(len(test_y), str)), n_classes=2,
+    context = dict(sets={"domain": train}, test=CropSet(test_x, test_y, np.zeros(len(test_y), str)), n_classes=2,
                    train=dict(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate))
-    try:
-        done = dict(forked_map(_condition_job, [("domain", int(s)) for s in seeds], workers))
-    finally:
-        _FORKED.clear()
+    done = dict(forked_map(_condition_job, [("domain", int(s)) for s in seeds], workers, context=context))
     accs = [balanced_accuracy(test_y, done[i]) if len(test_y) else float("nan") for i in range(len(seeds))]
     return {"accuracy": float(np.mean(accs)), "per_seed": accs, "n_train": int(len(train.y)),
             "n_test": int(len(test_y)),

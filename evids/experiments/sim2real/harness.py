@@ -20,14 +20,14 @@ from evids.experiments.sim2real.samples import STAT_NAMES, ClipSummary, FrameSam
 from simulator.files import write_atomic
 
 VISUAL_SENSORS = ("ir", "visible")
-_FORKED: dict[str, Any] = {}
 
 
 def _real_job(clip, params: dict) -> tuple[list[FrameSample], ClipSummary | None, str | None]:
     from evids.experiments.sim2real.samples import real_clip_samples
     from simulator.formats.validation import FormatError
+    from simulator.jobs import job_context
 
-    bench = _FORKED["bench"]
+    bench = job_context()
     try:
         samples, summary = real_clip_samples(bench, clip, **params)
         return samples, summary, None
@@ -64,11 +64,7 @@ def _cached_real_samples(out: Path, bench, calls: list, workers: int, progress: 
             pass  # unreadable or from another version: recompute
     from evids.experiments.pipeline import forked_map
 
-    _FORKED["bench"] = bench
-    try:
-        results = dict(forked_map(_real_job, calls, workers, "real clips" if progress else None))
-    finally:
-        _FORKED.clear()
+    results = dict(forked_map(_real_job, calls, workers, "real clips" if progress else None, context=bench))
     write_atomic(path, pickle.dumps({"key": key, "results": results}, protocol=pickle.HIGHEST_PROTOCOL))
     return results
 
