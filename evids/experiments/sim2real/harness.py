@@ -312,6 +312,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
             "classifier": cond, "domain_classifier": domain, "detector": detector, "sheets": files,
         }
         summary["timings_s"][f"{sensor}_models"] = time.time() - t
+        write_json(out / "sim2real.json", summary)     # partial results survive a later failure
 
     if "audio" in cfg.sensors:
         t = time.time()
@@ -319,11 +320,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         summary["timings_s"]["audio"] = time.time() - t
 
     summary["timings_s"]["total"] = time.time() - t0
-    from evids.runfolder import write_json
-
     write_json(out / "sim2real.json", summary)
-    from evids.report.sim2real import write_page
-
     write_page(out, summary)
     bench.close()
     return summary
