@@ -196,7 +196,13 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
 def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quick: bool = False, strict: bool = False,
                  progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Run the whole protocol into ``out`` (see the module docstring); returns the summary."""
+    # every module the run needs is imported here, before the long work: a module loaded lazily at
+    # the end could come from a different version of the files than the rest of the run
     from evids.experiments.pipeline import forked_map
+    from evids.experiments.sim2real import audio as _audio  # noqa: F401
+    from evids.experiments.sim2real import detect as _detect  # noqa: F401
+    from evids.report.sim2real import write_page
+    from evids.runfolder import write_json
     from scenes.errors import UserInputError
     from simulator.dataset.generate import generate_dataset
     from simulator.formats.svanstrom import open_benchmark
