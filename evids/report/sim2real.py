@@ -147,6 +147,11 @@ def section_html(run_dir: Path, summary: dict[str, Any]) -> str:
              "<p class='note'>Split rule: real clips with an odd number are the calibration half (training, fitting, "
              "looking); even numbers the evaluation half (every number below). Real clips skipped by the reader's "
              f"checks: {len(summary.get('skipped_clips', []))}.</p>"]
+    failures = summary.get("synthetic_failures") or {}
+    if failures:
+        parts.append("<p class='note'><b>Synthetic sequences that failed to render and are left out:</b> "
+                     + "; ".join(f"{html.escape(cls)} {html.escape(n)}: {html.escape(m)}"
+                                 for cls, f in failures.items() for n, m in sorted(f.items())) + "</p>")
     for sensor, res in summary["sensors"].items():
         parts.append(_audio(run_dir, res) if sensor == "audio" else _visual(run_dir, sensor, res))
     t = summary.get("timings_s", {})

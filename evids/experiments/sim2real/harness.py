@@ -204,7 +204,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     from evids.report.sim2real import write_page
     from evids.runfolder import write_json
     from scenes.errors import UserInputError
-    from simulator.dataset.generate import generate_dataset
+    from simulator.dataset.generate import GenerationFailed, generate_dataset
     from simulator.formats.svanstrom import open_benchmark
     from simulator.seeding import rng_for
 
@@ -251,11 +251,18 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     for k, cls in enumerate(classes):
         gen_cfg = _generation_config(cfg, cls, base_dir, quick)
         folder = out / "synthetic" / cls
-        res = generate_dataset(gen_cfg, folder, cfg.seed + k, workers=1 if quick else vis.workers, progress=progress)
-        for j, seq in enumerate(sorted(p for p in (folder / "sequences").iterdir() if p.is_dir())):
+        try:
+            generate_dataset(gen_cfg, folder, cfg.seed + k, workers=1 if quick else vis.workers, progress=progress)
+        except GenerationFailed as exc:   # the other sequences are complete: measure them, report the failures
+            if strict:
+                raise
+            summary.setdefault("synthetic_failures", {})[cls] = exc.failures
+            log(f"[sim2real] {cls}: {len(exc.failures)} synthetic sequence(s) failed to render and are left out "
+                f"(listed in sim2real.json): " + "; ".join(f"{n}: {m}" for n, m in sorted(exc.failures.items())))
+        done = sorted(p for p in (folder / "sequences").iterdir() if p.is_dir() and not p.name.startswith("."))
+        for j, seq in enumerate(done):
             for sensor in sensors:
                 syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
-        del res
     summary["timings_s"]["synthetic_render"] = time.time() - t
     t = time.time()
     for _, (got, summ) in forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
