@@ -18,6 +18,7 @@ Mitsuba is imported lazily (simulator.render.mitsuba_setup) so nothing else depe
 """
 from __future__ import annotations
 
+import warnings
 import weakref
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
@@ -209,6 +210,27 @@ class SkyMaps:
         u = (np.arctan2(local[0], -local[2]) / (2 * np.pi)) % 1.0
         v = np.arccos(np.clip(local[1], -1, 1)) / np.pi
         return self.rgb[min(int(v * ENV_HEIGHT), ENV_HEIGHT - 1), min(int(u * ENV_WIDTH), ENV_WIDTH - 1)]
+
+
+def finite_radiance(image: np.ndarray) -> np.ndarray:
+    """``image`` with every non-finite pixel (a NaN/inf path sample; seen on one pixel of a far airliner
+    over terrain) replaced by the median of the finite values of its 3x3 neighbourhood (0 when there
+    are none), as a film that rejects such samples would show it. Frames without one are returned
+    unchanged (the same array, the same bytes)."""
+    finite = np.isfinite(image)
+    if finite.all():
+        return image
+    bad = ~finite.all(axis=-1) if image.ndim == 3 else ~finite
+    out = np.where(finite, image, np.float32(np.nan)).astype(np.float32)
+    for y, x in zip(*np.nonzero(bad)):
+        window = out[max(0, y - 1):y + 2, max(0, x - 1):x + 2].reshape(-1, *image.shape[2:])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)   # an all-NaN window: 0 below
+            out[y, x] = np.nan_to_num(np.nanmedian(window, axis=0), nan=0.0)
+    out[~np.isfinite(out)] = 0.0
+    warnings.warn(f"renderer: {int(bad.sum())} non-finite pixel(s) replaced by their neighbourhood median",
+                  RuntimeWarning, stacklevel=2)
+    return out
 
 
 def is_scalar(mi) -> bool:
@@ -892,10 +914,10 @@ class SequenceRenderer:
         coverage = {}
         if "rgb" in parts:
             image, coverage["rgb"], mask_rgb = parts["rgb"]
-            rgb = image * np.float32(self.exposure)
+            rgb = finite_radiance(image * np.float32(self.exposure))
         if "thermal" in parts:
             image, coverage["thermal"], mask_th = parts["thermal"]
-            th = np.ascontiguousarray(image[..., 0])
+            th = finite_radiance(np.ascontiguousarray(image[..., 0]))
         return FrameBuffers(rgb_linear=rgb, thermal_radiance=th, mask_rgb=mask_rgb,
                             mask_thermal=mask_th, coverage=coverage if self.labels else None)
 

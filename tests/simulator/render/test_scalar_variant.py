@@ -94,3 +94,23 @@ def test_scalar_variant_render_matches_llvm(tmp_path, monkeypatch):
         np.testing.assert_allclose(s[f"rgb{f}"][~target], ref[f"rgb{f}"][~target], rtol=1e-4, atol=1e-6)
         mean_s, mean_ref = s[f"rgb{f}"][target].mean(axis=0), ref[f"rgb{f}"][target].mean(axis=0)
         np.testing.assert_allclose(mean_s, mean_ref, rtol=0.03)
+
+
+def test_finite_radiance_replaces_a_nan_sample_by_its_neighbourhood_median():
+    import numpy as np
+
+    from simulator.render.renderer import finite_radiance
+
+    img = np.arange(5 * 5 * 3, dtype=np.float32).reshape(5, 5, 3)
+    assert finite_radiance(img) is img                      # nothing to replace: the same array
+    bad = img.copy()
+    bad[2, 2] = np.nan
+    with pytest.warns(RuntimeWarning, match="1 non-finite pixel"):
+        fixed = finite_radiance(bad)
+    assert np.isfinite(fixed).all() and np.array_equal(np.delete(fixed.reshape(25, 3), 12, 0),
+                                                        np.delete(img.reshape(25, 3), 12, 0))
+    assert np.allclose(fixed[2, 2], img[2, 2])  # the median of the 8 finite neighbours of a linear ramp = the centre
+    gray = np.ones((4, 4), np.float32)
+    gray[0, 0] = np.inf
+    with pytest.warns(RuntimeWarning):
+        assert finite_radiance(gray)[0, 0] == 1.0
