@@ -173,7 +173,9 @@ def test_ray_executor_gives_the_same_hashes(tiny, tmp_path):
 
 
 def test_ctrl_c_stops_a_pool_run_promptly_and_keeps_finished_sequences(tmp_path):
-    config = write_tiny(tmp_path, sequences=8, frames=6)
+    # 24 sequences: under load the workers can finish 8 before the driver has moved the first into
+    # view, and a SIGINT that lands in interpreter shutdown exits 0 (seen in a loaded CI run)
+    config = write_tiny(tmp_path, sequences=24, frames=6)
     out = tmp_path / "ds"
     proc = _run_cli(config, out, "--workers", "2")
     seqs = out / "sequences"
@@ -187,5 +189,5 @@ def test_ctrl_c_stops_a_pool_run_promptly_and_keeps_finished_sequences(tmp_path)
     assert proc.returncode == 130 and "run the same command again" in stderr
     assert time.time() - t0 < 10
     visible = [p for p in seqs.iterdir() if not p.name.startswith(".")]
-    assert 1 <= len(visible) < 8 and all(verify_hashes(p) == [] for p in visible)
+    assert 1 <= len(visible) < 24 and all(verify_hashes(p) == [] for p in visible)
     assert not load_manifest(out)["complete"]
