@@ -51,8 +51,9 @@ class VisualProtocol(_Model):
 
 class Training(_Model):
     seeds: list[int] = Field(default_factory=lambda: [0, 1, 2], min_length=1)
-    epochs: int = Field(default=12, ge=1, le=1000)
-    quick_epochs: int = Field(default=2, ge=1, le=100)
+    steps: int = Field(default=250, ge=1, le=1_000_000,
+                       description="optimiser steps per crop classifier, the same for every condition")
+    quick_steps: int = Field(default=15, ge=1, le=10_000)
     batch_size: int = Field(default=128, ge=1, le=65_536)
     learning_rate: float = Field(default=2e-3, gt=0.0, le=1.0)
     few_shot_fraction: float = Field(default=0.1, gt=0.0, le=1.0)

@@ -103,36 +103,55 @@ def ap50(gt: dict[str, Any], ids: dict[tuple[int, int], int], detections: list[l
     return coco_ap50_file(gt_path, res_path)
 
 
-def run_detector(train_sets: dict[str, list[ClipSummary]], test: list[ClipSummary], sensor: str, *,
-                 seeds: Sequence[int],
-                 steps: int, folder: Path) -> dict[str, Any]:
-    """AP50 on ``test`` of the detector trained on each of ``train_sets`` (e.g. {"real": ..., "synthetic": ...})
-    with every seed; mean and per seed, and the ratio synthetic / real."""
+def _train_and_detect(cond: str, seed: int) -> list[list[dict]]:
+    """One forked job: train the detector on ``cond``'s clips with ``seed`` (one torch thread) and
+    decode its peaks on the evaluation frames."""
+    import torch
+
     from evids.experiments.detection.config import TrainConfig
     from evids.experiments.detection.train import train_model
+    from simulator.jobs import job_context
+
+    torch.set_num_threads(1)
+    f = job_context()
+    cfg = TrainConfig(seed=seed, steps=f["steps"], crop_px=f["crop"][cond], batch_size=8, threads=1)
+    model, _ = train_model(f["name"], f["train"][cond], cfg)
+    return detect(model, f["test"], f["sensor"])
+
+
+def run_detector(train_sets: dict[str, list[ClipSummary]], test: list[ClipSummary], sensor: str, *,
+                 seeds: Sequence[int], steps: int, folder: Path, workers: int = 1,
+                 label: str | None = None) -> dict[str, Any]:
+    """AP50 on ``test`` of the detector trained on each of ``train_sets`` (e.g. {"real": ..., "synthetic": ...})
+    with every seed (the condition x seed runs are forked jobs on ``workers`` processes, one torch thread
+    each); mean and per seed, and the ratio synthetic / real."""
+    from evids.experiments.pipeline import forked_map
 
     test_seqs = [to_sequence(c, i) for i, c in enumerate(test) if c.frames]
     if not test_seqs:
         return {"note": "no evaluation frames"}
     gt, ids = coco_ground_truth(test_seqs)
     folder.mkdir(parents=True, exist_ok=True)
-    name = "thermal_sigmoid" if sensor == "ir" else "rgb_sigmoid"
     result: dict[str, Any] = {"n_test_clips": len(test_seqs), "n_test_frames": len(ids),
                               "n_test_boxes": len(gt["annotations"]), "conditions": {}}
+    train: dict[str, list] = {}
+    crop: dict[str, int] = {}
     for cond, clips in train_sets.items():
         seqs = [to_sequence(c, i) for i, c in enumerate(clips) if c.frames]
         if not seqs:
             continue
         side = min(min(np.asarray(s.thermal_k).shape[1:3]) for s in seqs + test_seqs)
-        crop = int(min(96, side // 4 * 4))
-        if crop < 32:
+        crop[cond] = int(min(96, side // 4 * 4))
+        if crop[cond] < 32:
             result["conditions"][cond] = {"note": f"frames too small for the detector ({side} px)"}
             continue
-        scores = []
-        for seed in seeds:
-            cfg = TrainConfig(seed=seed, steps=steps, crop_px=crop, batch_size=8, threads=1)
-            model, _ = train_model(name, seqs, cfg)
-            scores.append(ap50(gt, ids, detect(model, test_seqs, sensor), folder, f"{cond}_seed{seed}"))
+        train[cond] = seqs
+    jobs = [(cond, int(seed)) for cond in train for seed in seeds]
+    context = dict(train=train, crop=crop, test=test_seqs, sensor=sensor, steps=steps,
+                   name="thermal_sigmoid" if sensor == "ir" else "rgb_sigmoid")
+    done = {jobs[i]: dets for i, dets in forked_map(_train_and_detect, jobs, workers, label, context=context)}
+    for cond, seqs in train.items():
+        scores = [ap50(gt, ids, done[(cond, int(seed))], folder, f"{cond}_seed{seed}") for seed in seeds]
         result["conditions"][cond] = {"ap50": float(np.mean(scores)), "per_seed": scores, "train_clips": len(seqs),
                                       "train_frames": int(sum(len(s.gt_thermal) for s in seqs))}
     c = result["conditions"]

@@ -213,7 +213,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     bench = open_benchmark(real)
     vis, tr = cfg.visual, cfg.training
     seeds = tr.seeds
-    epochs = tr.quick_epochs if quick else tr.epochs
+    steps = tr.quick_steps if quick else tr.steps
     classes = list(vis.classes)
     summary: dict[str, Any] = {"config": cfg.model_dump(mode="json"), "quick": quick, "real": bench.where,
                                "split_rule": "odd clip numbers = calibration half (train, fit, look); "
@@ -287,7 +287,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         sets = {"a_real": set_a, "b_synthetic": set_b, "c_synthetic_plus_real": classify.concat(set_b, set_a),
                 "d_few_shot": set_d, "d_plus_few_shot_synthetic": classify.concat(set_b, set_d)}
         test = classify.crop_set(real_eval, classes)
-        cond = classify.evaluate_conditions(sets, test, len(classes), seeds=seeds, epochs=epochs,
+        cond = classify.evaluate_conditions(sets, test, len(classes), seeds=seeds, steps=steps,
                                             batch_size=tr.batch_size, learning_rate=tr.learning_rate,
                                             bootstrap=min(tr.bootstrap, 200) if quick else tr.bootstrap,
                                             rng_seed=cfg.seed,
@@ -297,7 +297,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         for kind in ("crop", "background"):
             domain[kind] = classify.domain_classifier(classify.crop_set(real_cal, classes, kind),
                                                       classify.crop_set(synthetic, classes, kind),
-                                                      seeds=seeds, epochs=epochs, batch_size=tr.batch_size,
+                                                      seeds=seeds, steps=steps, batch_size=tr.batch_size,
                                                       learning_rate=tr.learning_rate, workers=vis.workers,
                                                       rng=rng_for(cfg.seed, "sim2real", 8,
                                                                   VISUAL_SENSORS.index(sensor)))
@@ -311,7 +311,8 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                                            [c for c in s_clips if c.domain == "real" and c.half == "evaluation"],
                                            sensor, seeds=seeds, steps=vis.quick_detector_steps if quick
                                            else vis.detector_steps,
-                                           folder=out / "detector" / sensor)
+                                           folder=out / "detector" / sensor, workers=vis.workers,
+                                           label=f"{sensor}: detectors" if progress else None)
         else:
             detector = {"note": "off (visual.detector_frames_per_clip: 0)"}
         files = write_sheets(s_samples, [c for c in clip_summaries if c.sensor == sensor], sensor, classes, sheets,

@@ -120,3 +120,26 @@ def test_few_shot_takes_a_fraction_of_each_class_at_least_one():
             for cls, n in (("DRONE", 20), ("BIRD", 3)) for k in range(n)]
     chosen = classify.few_shot_clips(rows, 0.1, np.random.default_rng(0))
     assert sum(c.startswith("DRONE") for c in chosen) == 2 and sum(c.startswith("BIRD") for c in chosen) == 1
+
+
+@pytest.mark.parametrize("n_crops", [5, 300])
+def test_every_condition_gets_the_same_number_of_optimiser_steps(n_crops, monkeypatch):
+    """Counted in steps, not epochs: a few-shot set of 5 crops and a set of 300 both get ``steps``
+    updates (counted in epochs, the small set got a tenth of the training)."""
+    import torch
+
+    from evids.experiments.sim2real import classify
+
+    calls = []
+    original = torch.optim.Adam.step
+
+    def counting_step(self, *args, **kwargs):
+        calls.append(1)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(torch.optim.Adam, "step", counting_step)
+    rng = np.random.default_rng(0)
+    crops = classify.CropSet(rng.normal(size=(n_crops, 1, 16, 16)).astype(np.float32),
+                             rng.integers(0, 2, n_crops), np.array([f"c{i % 3}" for i in range(n_crops)]))
+    classify.train_cnn(crops, 2, seed=0, steps=7, batch_size=64, learning_rate=1e-3)
+    assert len(calls) == 7
