@@ -50,15 +50,13 @@ from evids.experiments.pipeline import (
 from evids.gating import GateParams, HysteresisGate, sweep_gates
 from evids.metrics import paired_bootstrap, paired_permutation_test
 from evids.metrics.significance import UNDECIDED, comparison_verdict
-from evids.models.backbones import MODALITIES
+from evids.modalities import INPUT_FIELD, MODALITIES, MODALITY_STREAMS, MODALITY_TABLE, NOISE_STREAMS
 from evids.runfolder import mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
 from simulator.files import atomic_path, environment_record, write_atomic
 from simulator.jobs import job_context
 
 VARIANTS = ("clean", "standard", "all_spec", "iq")
-NOISE_STREAMS = ("audio", "video", "rf_spec", "rf_iq")
-MODALITY_STREAMS = {"audio": ("audio",), "video": ("video",), "rf": ("rf_spec", "rf_iq")}
 
 
 # ------------------------------------------------------------------------------------------
@@ -151,8 +149,7 @@ class Context:
             x = self.cache.get(pkey)
             if x is None:
                 kw = {"rf_range_db": self.prep.rf_range_db, "rf_config": self.prep.rf_config, **noise}
-                field_name = {"audio": "mfcc", "video": "video", "rf": "rf"}[modality]
-                x = np.concatenate([getattr(degrade_clip(self.prep.clips[i], i, seed, **kw), field_name)
+                x = np.concatenate([getattr(degrade_clip(self.prep.clips[i], i, seed, **kw), INPUT_FIELD[modality])
                                     for i in self.prep.split[split]])
                 self.cache[pkey] = x
             self.cache[key] = encode_modality(self.models[run], modality, x)
@@ -485,8 +482,9 @@ def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
     torch.set_num_threads(cfg.models.torch_threads)
     y, cid = ctx.labels(), ctx.clip_ids()
     name = getattr(sc, modality)
-    stream = {"audio": "audio", "video": "video", "rf": "rf_iq" if name.startswith("rf.") and not name.startswith(
-        "rf.spec") else "rf_spec"}[modality]
+    import degradations
+
+    stream = MODALITY_TABLE[modality].stream_of(degradations.REGISTRY[name].modality)  # validated: it has one
     if stream == "rf_iq" and not ctx.has_iq():
         return job, []
     per: dict[str, list[dict]] = {}
