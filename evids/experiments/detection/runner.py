@@ -27,7 +27,14 @@ from evids.experiments.detection.conditions import (
     run_model,
     single_stream,
 )
-from evids.experiments.detection.config import CONDITIONS, DetectionConfig, load_detection_config
+from evids.experiments.detection.config import (
+    CONDITIONS,
+    DETECTION_CONDITIONS,
+    DetectionConfig,
+    condition_key,
+    load_detection_config,
+    split_key,
+)
 from evids.experiments.detection.data import SequenceData, crop_resize, dataset_entries, inputs, load_sequence
 from evids.experiments.detection.tracking import FrameDetections, run_tracker, tracking_on_absence
 from evids.experiments.detection.train import MODEL_IDS, build_model, train_model
@@ -38,23 +45,12 @@ from simulator.jobs import run_jobs
 
 Log = Callable[[str], None]
 
-STREAM_KEYS = {
-    "a_sigmoid": ("rgb", "thermal"), "b_evidential": ("rgb", "thermal"), "c_evidential_tau": ("rgb", "thermal"),
-    "d_average": ("fused",), "e_ds": ("fused",), "f_ds_gated": ("fused",), "g_feature_fusion": ("fused",),
-    "h_feature_fusion_ts": ("fused",),
-}
 MATCH_PX = 24.0
 
 
 def models_needed(conditions: list[str]) -> list[str]:
-    need = set()
-    for c in conditions:
-        if c == "a_sigmoid":
-            need |= {"rgb_sigmoid", "thermal_sigmoid"}
-        elif c in ("g_feature_fusion", "h_feature_fusion_ts"):
-            need.add("fusion_sigmoid")
-        else:
-            need |= {"rgb_evidential", "thermal_evidential"}
+    """The trained detectors the conditions read, in MODEL_IDS order."""
+    need = {m for c in conditions for m in DETECTION_CONDITIONS[c].models}
     return [m for m in MODEL_IDS if m in need]
 
 
@@ -292,7 +288,7 @@ def fuse_maps_at_target(maps: dict[str, StreamMaps], seq: SequenceData):
 
 
 def gt_of(seq: SequenceData, key: str) -> list:
-    return seq.gt_thermal if key.endswith("/thermal") else seq.gt_rgb
+    return seq.gt_thermal if split_key(key)[1] == "thermal" else seq.gt_rgb
 
 
 # ------------------------------------------------------------------------------------ fitting
@@ -369,7 +365,7 @@ def fit_temperature_on_val(val: list[tuple[SequenceData, dict]]) -> float:
 
 # ------------------------------------------------------------------------------------- evaluate
 def _keys(cfg: DetectionConfig) -> list[str]:
-    return [f"{c}/{s}" for c in cfg.conditions for s in STREAM_KEYS[c]]
+    return [condition_key(c, s) for c in cfg.conditions for s in DETECTION_CONDITIONS[c].streams]
 
 
 def _tracker_name(key: str) -> str:
@@ -429,17 +425,19 @@ def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, te
         if key not in out["dets"]:
             continue
         frames, decoded = out["dets"][key]
+        cond, stream = split_key(key)
+        thermal = stream == "thermal"
         gt = gt_of(seq, key)
         f = fitted[key]
         steps = run_tracker(frames, f["det_threshold"], f["theta"], cfg.tracker.search_px, f.get("tau_det"))
         boxes_out = [s.box for s in steps]
-        M.write_mot_tracker(exports / "mot" / "trackers" / f"{'IR' if key.endswith('/thermal') else 'RGB'}-"
+        M.write_mot_tracker(exports / "mot" / "trackers" / f"{'IR' if thermal else 'RGB'}-"
                                                            f"{seq.set_name}"
                             / _tracker_name(key) / "data" / f"{video}.txt", boxes_out, [s.score for s in steps],
                             [s.track_id for s in steps])
-        label_file = exports / "antiuav" / seq.set_name / (video if key.endswith("/thermal")
+        label_file = exports / "antiuav" / seq.set_name / (video if thermal
                                                            else f"{video}_visible") / (
-            "IR_label.json" if key.endswith("/thermal") else "visible.json")
+            "IR_label.json" if thermal else "visible.json")
         sa = M.antiuav_state_accuracy(label_file, boxes_out)
         vals = M.per_frame_state_values(boxes_out, gt)
         th_blind = np.array([g is not None for g in gt]) & ~seq.thermal_observed
@@ -455,7 +453,7 @@ def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, te
         coco_dets.setdefault(f"{seq.set_name}|{key}", []).extend(
             (video, t, fr.boxes, fr.scores) for t, fr in enumerate(frames))
         for t, (fr, _decoded) in enumerate(zip(frames, decoded)):
-            all_gt = (seq.boxes_thermal if key.endswith("/thermal") else seq.boxes_rgb)[t]
+            all_gt = (seq.boxes_thermal if thermal else seq.boxes_rgb)[t]
             tp = M.detections_matched(fr.boxes, fr.scores, all_gt)
             for i in range(fr.boxes.shape[0]):
                 p = float(fr.scores[i])
@@ -463,8 +461,7 @@ def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, te
                 det_rows.append({"set": seq.set_name, "sequence": video, "key": key, "frame": t, "score": p,
                                  "unc": float(fr.uncertainty[i]), "entropy": ent, "tp": bool(tp[i]),
                                  "area": float(fr.boxes[i, 2] * fr.boxes[i, 3])})
-        if key.startswith("b_evidential/"):
-            stream = key.split("/")[1]
+        if cond.crop_uncertainty:
             model = models[f"{stream}_evidential"]
             x = inputs(seq)
             other = "thermal" if stream == "rgb" else "rgb"
@@ -537,15 +534,15 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
     temperature = fit_temperature_on_val(val) if "h_feature_fusion_ts" in cfg.conditions else None
     gate = None
     for key in keys:
-        if key.startswith(("f_", "h_")):
+        if split_key(key)[0].fit_after is not None:
             continue
-        fitted[key] = fit_tracking(val, key, cfg, tau_det_grid=key.startswith("c_"))
+        fitted[key] = fit_tracking(val, key, cfg, tau_det_grid=split_key(key)[0].tau_det)
     if "f_ds_gated" in cfg.conditions:
         gate = fit_gate(val, val_maps, cfg, fitted["e_ds/fused"])
     if gate is not None or temperature is not None:
         val = [(s, condition_dets(s, m, cfg, gate, temperature)) for s, m in zip(val_seqs, val_maps)]
         for key in keys:
-            if key.startswith(("f_", "h_")):
+            if split_key(key)[0].fit_after is not None:
                 fitted[key] = fit_tracking(val, key, cfg)
     del val_maps, val
     write_json(run_dir / "fitted.json", {"tracking": fitted, "gate": gate, "temperature": temperature,
@@ -613,14 +610,14 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
     ap50 = {}
     for sk, dets in coco_dets.items():
         set_name, key = sk.split("|")
-        modality = "ir" if key.endswith("/thermal") else "rgb"
+        modality = "ir" if split_key(key)[1] == "thermal" else "rgb"
         ap50[sk] = M.coco_ap50(exports / "coco" / f"{set_name}_{modality}.json",
                                exports / "coco" / "results" / f"{set_name}__{_tracker_name(key)}.json", dets,
                                image_ids[f"{set_name}/{modality}"])
     mot = {}
     for set_name in test_sets:
-        for bench, suffix in (("RGB", ("/rgb", "/fused")), ("IR", ("/thermal",))):
-            trackers = [_tracker_name(k) for k in keys if k.endswith(suffix)]
+        for bench, streams in (("RGB", ("rgb", "fused")), ("IR", ("thermal",))):
+            trackers = [_tracker_name(k) for k in keys if split_key(k)[1] in streams]
             trackers = [t for t in trackers if (exports / "mot" / "trackers" / f"{bench}-{set_name}" / t).is_dir()]
             if trackers:
                 res = M.trackeval_mot(exports / "mot" / "gt", exports / "mot" / "trackers", bench, set_name, trackers)
@@ -775,7 +772,7 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
             cl = np.array([d["sequence"] for d in dets])[sel]
             scores = {"confidence": 1.0 - np.array([d["score"] for d in dets])[sel],
                       "entropy": np.array([d["entropy"] for d in dets])[sel]}
-            if key.split("/")[0] in ("b_evidential", "c_evidential_tau", "d_average", "e_ds", "f_ds_gated"):
+            if split_key(key)[0].evidential:
                 scores["vacuity"] = np.array([d["unc"] for d in dets])[sel]
                 tps = ~err
                 mean_u_tp = float(scores["vacuity"][tps].mean()) if tps.any() else np.nan
