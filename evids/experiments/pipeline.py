@@ -71,7 +71,7 @@ class Outputs:
 
 
 def _inputs(modality: str, mfcc: np.ndarray, video: np.ndarray, rf: np.ndarray) -> np.ndarray:
-    return {"audio": mfcc, "video": video, "rf": rf}[modality]
+    return (mfcc, video, rf)[MODALITIES.index(modality)]
 
 
 def encode_modality(models: Models, modality: str, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -266,10 +266,9 @@ def _load_one(cfg: ExperimentConfig, state: dict) -> Models:
         model.eval()
         unimodal[(m, h)] = model
     heads = []
-    for name in ("late", "gmu", "late_clean", "gmu_clean"):
+    for name, late in (("late", True), ("gmu", False), ("late_clean", True), ("gmu_clean", False)):
         with seeded_init(0):
-            mod = LateFusion(3) if name.startswith("late") else GMU([mc.embedding] * 3, mc.gmu_hidden, 1,
-                                                                    gate="sigmoid")
+            mod = LateFusion(3) if late else GMU([mc.embedding] * 3, mc.gmu_hidden, 1, gate="sigmoid")
         mod.load_state_dict(state[name])
         mod.eval()
         heads.append(mod)

@@ -58,6 +58,8 @@ from simulator.files import atomic_path, environment_record, write_atomic
 from simulator.jobs import job_context
 
 VARIANTS = ("clean", "standard", "all_spec", "iq")
+#: the sweep's unimodal rows (after the fusion rules): row name -> the head of the swept modality
+SWEEP_HEADS = {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}
 
 
 # ------------------------------------------------------------------------------------------
@@ -487,10 +489,9 @@ def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
     for seed, run in [(s_, r_) for s_ in seeds for r_ in ctx.runs]:
         out = ctx.outputs("clean", 0, run=run) if sev == 0 else ctx.outputs(
             "sweep", seed, run=run, **{stream: [NoiseEntry(name=name, severity=sev)]})
-        for rule in (*FUSION_RULES, "unimodal_sigmoid", "unimodal_edl"):
-            cond = Condition(rule, rule, "sweep",
-                             {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}.get(rule, rule),
-                             modality if rule.startswith("unimodal") else None)
+        for rule in (*FUSION_RULES, *SWEEP_HEADS):
+            head = SWEEP_HEADS.get(rule)        # a unimodal row: the swept modality's own head
+            cond = Condition(rule, rule, "sweep", head or rule, modality if head else None)
             pred = predict_condition(cond, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction,
                                      None)
             m = metrics_of(pred, y, cfg.ece_bins)
