@@ -69,6 +69,11 @@ def condition_key(condition: str, stream: str) -> str:
     return f"{condition}/{stream}"
 
 
+def condition_keys(cfg: DetectionConfig) -> list[str]:
+    """Every condition-stream key the config runs, in condition then stream order."""
+    return [condition_key(c, s) for c in cfg.conditions for s in DETECTION_CONDITIONS[c].streams]
+
+
 def split_key(key: str) -> tuple[DetectionCondition, str]:
     """``"e_ds/fused"`` -> (the e_ds record, ``"fused"``)."""
     condition, stream = key.split("/")

@@ -6,16 +6,17 @@ from evids.experiments.detection.config import (
     DETECTION_CONDITIONS,
     TINY_CONFIG,
     condition_key,
+    condition_keys,
     load_detection_config,
     split_key,
 )
-from evids.experiments.detection.runner import _keys, models_needed
+from evids.experiments.detection.runner import models_needed
 
 
 def test_keys_and_models_match_the_hand_written_tables_they_replace():
     cfg = load_detection_config(TINY_CONFIG)
-    assert _keys(cfg)[:4] == ["a_sigmoid/rgb", "a_sigmoid/thermal", "b_evidential/rgb", "b_evidential/thermal"]
-    assert set(_keys(cfg)) >= {"e_ds/fused", "f_ds_gated/fused", "h_feature_fusion_ts/fused"}
+    assert condition_keys(cfg)[:4] == ["a_sigmoid/rgb", "a_sigmoid/thermal", "b_evidential/rgb", "b_evidential/thermal"]
+    assert set(condition_keys(cfg)) >= {"e_ds/fused", "f_ds_gated/fused", "h_feature_fusion_ts/fused"}
     assert models_needed(["a_sigmoid"]) == ["rgb_sigmoid", "thermal_sigmoid"]
     assert models_needed(["h_feature_fusion_ts", "g_feature_fusion"]) == ["fusion_sigmoid"]
     assert models_needed(["e_ds", "c_evidential_tau"]) == ["rgb_evidential", "thermal_evidential"]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from evids.experiments.detection.config import TINY_CONFIG, load_detection_config
-from evids.experiments.detection.runner import headline, summarise
+from evids.experiments.detection.summary import headline, summarise
 
 
 def _cfg(conditions):
