@@ -162,7 +162,7 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
     # thermal vacuity against |dT| / NETD on frames with the target in the thermal frame
     fr = [r for r in frame_rows if r["exist_thermal"] and np.isfinite(r["contrast_k"])
           and np.isfinite(r["thermal_u_at_target"])]
-    vac = {}
+    vac: dict[str, Any] = {}
     if fr:
         ratio = np.array([abs(r["contrast_k"]) / r["netd_k"] for r in fr])
         u = np.array([r["thermal_u_at_target"] for r in fr])
@@ -180,11 +180,11 @@ def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, 
         vac["points"] = {"ratio": ratio.tolist(), "u": u.tolist(), "set": [r["set"] for r in fr]}
     conflict = {}
     for set_name in sets:
-        c = np.array([r["ds_conflict_at_target"] for r in frame_rows if r["set"] == set_name and r["exist"]], float)
-        c = c[np.isfinite(c)]
-        if c.size:
-            conflict[set_name] = {"mean": float(c.mean()), "p90": float(np.quantile(c, 0.9)), "max": float(c.max()),
-                                  "n": int(c.size)}
+        cv = np.array([r["ds_conflict_at_target"] for r in frame_rows if r["set"] == set_name and r["exist"]], float)
+        cv = cv[np.isfinite(cv)]
+        if cv.size:
+            conflict[set_name] = {"mean": float(cv.mean()), "p90": float(np.quantile(cv, 0.9)), "max": float(cv.max()),
+                                  "n": int(cv.size)}
     obs = {}
     for set_name in sets:
         rows = [r for r in frame_rows if r["set"] == set_name and r["exist"]]
