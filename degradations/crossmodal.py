@@ -24,7 +24,7 @@ class _Cross(Degradation):
         stream = params.pop("stream", "rgb")
         if stream not in self.streams:
             raise DegradationError(f"{self.name}: stream must be one of {self.streams}, got {stream!r}")
-        self.modality = stream
+        self.modality = stream  # type: ignore[misc]  # per instance by design: the stream parameter picks it
         super().__init__(severity, temporal=temporal, **params)
         self.overrides["stream"] = stream
 

@@ -55,7 +55,7 @@ def run_one(deg: Degradation, x: np.ndarray, rng: np.random.Generator, meta: dic
     meta = dict(meta or {})
     params = deg.sample_params(rng, meta)
     y = deg.apply(x, params, meta)
-    info = {"name": deg.name, "params": params, "meta": deg.update_meta(params, meta, tuple(x.shape))}
+    info: dict[str, Any] = {"name": deg.name, "params": params, "meta": deg.update_meta(params, meta, tuple(x.shape))}
     info.update(deg.measure(x, y, params, meta))
     return y, info
 

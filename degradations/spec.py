@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, cast
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -28,6 +28,7 @@ from degradations.schedule import (
 )
 
 Severity = Annotated[float, Field(ge=0.0, le=5.0)]
+Stream = Literal["rgb", "thermal", "audio", "rf_iq", "rf_spec"]
 
 
 def default_stream(name: str, params: dict | None = None) -> str:
@@ -47,7 +48,7 @@ class _Model(BaseModel):
 class DegradationEntry(_Model):
     """One degradation: registered ``name``, optional severity/params/temporal and schedule."""
     name: str
-    stream: Literal["rgb", "thermal", "audio", "rf_iq", "rf_spec"] | None = None
+    stream: Stream | None = None
     severity: Severity | None = None
     params: dict[str, Any] = Field(default_factory=dict)
     temporal: Literal["per_frame", "static"] | None = None
@@ -69,7 +70,7 @@ class DegradationEntry(_Model):
             raise ValueError(str(exc)) from None
         self.params = params
         if self.stream is None:
-            self.stream = default_stream(self.name, params)
+            self.stream = cast(Stream, default_stream(self.name, params))
         return self
 
 
@@ -94,8 +95,10 @@ class ProgramEntry(_Model):
     def resolved_schedule(self) -> Schedule:
         if self.schedule is not None:
             return self.schedule
-        return StepSchedule(events=[Event(onset_s=self.onset_s, duration_s=self.duration_s,
-                                          severity=self.severity)])
+        onset_s, duration_s = self.onset_s, self.duration_s
+        if onset_s is None or duration_s is None:       # excluded by _check; narrows the types
+            raise ValueError("give onset_s and duration_s, or a schedule")
+        return StepSchedule(events=[Event(onset_s=onset_s, duration_s=duration_s, severity=self.severity)])
 
 
 class DegradationSpec(_Model):
@@ -334,7 +337,8 @@ def apply_spec(spec: DegradationSpec, streams: dict[str, Any], meta: dict, seed:
     present = [m for m in MODALITIES if m in arrays]
     sev_rows = {m: np.zeros(K) for m in present}
     missing_rows = {m: np.zeros(K, bool) for m in present}
-    applied, skipped = [], []
+    applied: list[dict] = []
+    skipped: list[dict] = []
     for i, e, key in entries_on(spec, present, skipped):
         stream = e["stream"]
         x = arrays[stream]

@@ -192,7 +192,8 @@ class FramePlan:
             yield x, _own_keys(dict(frame_meta(stream, j)), stream)
 
     def _stage(self, stage: _Stage, upstream: Iterator) -> Iterator[tuple[np.ndarray, dict]]:
-        held_j, held = -1, None
+        held: Any = None
+        held_j = -1
         for j in range(self.n):
             src = int(stage.source[j])
             while held_j < src:
@@ -254,7 +255,8 @@ def plan_frames(spec: DegradationSpec, seed: int, t_s: Any, meta: dict,
     shapes = {m: tuple(int(v) for v in shapes[m]) for m in present}
     sev_rows = {m: np.zeros(t_s.size) for m in present}
     missing_rows = {m: np.zeros(t_s.size, bool) for m in present}
-    stages, skipped = [], []
+    stages: list[Any] = []
+    skipped: list[dict] = []
     for i, e, key in entries_on(spec, present, skipped):
         stream = e["stream"]
         view = stream_view(meta, stream)

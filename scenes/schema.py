@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-from typing import Annotated, Literal, Union
+from typing import Annotated, Final, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from scenes.terrain_assets import check_asset
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION: Final = 1
 
 TargetKind = Literal["quadcopter", "hexacopter", "fixed_wing", "bird", "airliner", "helicopter"]
 Vec3 = tuple[float, float, float]

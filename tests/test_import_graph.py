@@ -37,7 +37,7 @@ ALLOWED: dict[str, set[str]] = {
                   "simulator.sensors", "simulator.render", "simulator.formats", "simulator.dataset", "evids.core",
                   "evids.runfolder", "evids.report", "evids.experiments"},
 }
-EVIDS_CORE = {"heads", "losses", "fusion", "gating", "metrics", "models", "__init__"}
+EVIDS_CORE = {"heads", "losses", "fusion", "gating", "metrics", "models", "modalities", "__init__"}
 
 
 def layer_of(module: str) -> str:

@@ -20,7 +20,7 @@ from evids.metrics import (
     nll,
     uauc,
 )
-from evids.models.backbones import MODALITIES
+from evids.modalities import MODALITIES
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from evids.experiments.config import DatasetConfig, SplitConfig
+from evids.modalities import OBSERVABILITY_KEY
 from scenes.errors import UserInputError
 from simulator.seeding import STREAMS
 
@@ -126,7 +127,7 @@ def load_clips(root: Path, progress: bool = True) -> list[ClipArrays]:
         iq = None if iq is None else iq[: len(segs)]
         obs = {}
         if segs[0].observability is not None:
-            obs = {m: np.array([s.observability[m] for s in segs]) for m in ("audio", "video", "rf")}
+            obs = {k: np.array([s.observability[k] for s in segs]) for k in OBSERVABILITY_KEY.values()}
         info = _clip_info(clip, len(segs))
         out.append(ClipArrays(
             clip_id=clip.clip_id, label=int(segs[0].label),

@@ -11,6 +11,7 @@ import numpy as np
 import degradations
 from evids.experiments.config import NoiseEntry
 from evids.experiments.data import ClipArrays
+from evids.modalities import MODALITY_TABLE, OBSERVABILITY_KEY
 
 STREAM_CODE = {"audio": 1, "video": 2, "rf_spec": 3, "rf_iq": 4, "program": 5}
 SEGMENT_S = 0.25
@@ -106,14 +107,10 @@ def conflict_clip(clip: ClipArrays, clip_index: int, noise_seed: int, program: s
     spec_out = np.asarray(out["rf_spec"])
     rf = db_to_image(np.stack(np.split(spec_out, s, axis=1)), rf_range_db)
     comp = record["compromised"]
-    flags = {"compromised": {"audio": np.asarray(comp.get("audio", [False] * s), bool),
-                             "video": np.asarray(comp.get("rgb", [False] * s), bool),
-                             "rf": np.asarray(comp.get("rf_spec", [False] * s), bool)},
+    flags = {"compromised": {m: np.asarray(comp.get(spec.compromised_key, [False] * s), bool)
+                             for m, spec in MODALITY_TABLE.items()},
              "conflict": np.asarray(record["conflict"], bool)}
     return Degraded(mfcc, video, rf), flags
-
-
-_OBS_KEY = {"video": "video", "audio": "audio", "rf": "rf"}
 
 
 def program_window(n_segments: int, onset_fraction: float, duration_fraction: float) -> np.ndarray:
@@ -166,7 +163,7 @@ def targeted_segments(clip: ClipArrays, donor: ClipArrays, kind: str, modalities
     drone = clip if kind == "blind" else donor
     mask = np.asarray(window, bool).copy()
     for m in modalities:
-        obs = drone.observability.get(_OBS_KEY[m])
+        obs = drone.observability.get(OBSERVABILITY_KEY[m])
         if obs is not None and len(obs) == len(mask):
             mask &= np.asarray(obs, bool)
     return mask

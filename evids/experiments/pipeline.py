@@ -15,7 +15,8 @@ import torch
 from evids.experiments.config import ExperimentConfig
 from evids.experiments.data import Prepared, labels_of, stack
 from evids.fusion import GMU, LateFusion
-from evids.models.backbones import MODALITIES, UnimodalModel, build_model, seeded_init
+from evids.modalities import INPUT_FIELD, MODALITIES
+from evids.models.backbones import UnimodalModel, build_model, seeded_init
 from evids.models.train import TrainResult, predict, train_model
 from simulator.files import atomic_path
 from simulator.jobs import iter_jobs, job_context
@@ -70,7 +71,7 @@ class Outputs:
 
 
 def _inputs(modality: str, mfcc: np.ndarray, video: np.ndarray, rf: np.ndarray) -> np.ndarray:
-    return {"audio": mfcc, "video": video, "rf": rf}[modality]
+    return (mfcc, video, rf)[MODALITIES.index(modality)]
 
 
 def encode_modality(models: Models, modality: str, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -129,7 +130,6 @@ def training_seed_base(seed: int) -> int:
     return int(seed)
 
 
-_INPUT_KEY = {"audio": "mfcc", "video": "video", "rf": "rf"}
 def _train_job(mc, modality: str, head: str, train_seed: int) -> tuple[dict, dict]:
     """Train one unimodal model on the arrays in the job context; (state dict, record)."""
     arrays = job_context()
@@ -137,7 +137,7 @@ def _train_job(mc, modality: str, head: str, train_seed: int) -> tuple[dict, dic
     torch.set_num_threads(mc.torch_threads)
     init_seed, order_seed = model_seed(training_seed_base(train_seed), modality, head)
     model = build_model(modality, head, init_seed, mc.width, mc.embedding, mc.video_pool, mc.video_frames)
-    res: TrainResult = train_model(model, x["train"][_INPUT_KEY[modality]], y_tr, x["val"][_INPUT_KEY[modality]],
+    res: TrainResult = train_model(model, x["train"][INPUT_FIELD[modality]], y_tr, x["val"][INPUT_FIELD[modality]],
                                    y_va, mc.train, order_seed)
     return model.state_dict(), {"init_seed": init_seed, "order_seed": order_seed, **res.to_json()}
 
@@ -266,10 +266,9 @@ def _load_one(cfg: ExperimentConfig, state: dict) -> Models:
         model.eval()
         unimodal[(m, h)] = model
     heads = []
-    for name in ("late", "gmu", "late_clean", "gmu_clean"):
+    for name, late in (("late", True), ("gmu", False), ("late_clean", True), ("gmu_clean", False)):
         with seeded_init(0):
-            mod = LateFusion(3) if name.startswith("late") else GMU([mc.embedding] * 3, mc.gmu_hidden, 1,
-                                                                    gate="sigmoid")
+            mod = LateFusion(3) if late else GMU([mc.embedding] * 3, mc.gmu_hidden, 1, gate="sigmoid")
         mod.load_state_dict(state[name])
         mod.eval()
         heads.append(mod)

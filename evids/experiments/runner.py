@@ -47,18 +47,19 @@ from evids.experiments.pipeline import (
     train_all,
     train_unimodal,
 )
+from evids.experiments.store import InputsKey, ModalityKey, OutputsKey, OutputsStore, noise_desc
 from evids.gating import GateParams, HysteresisGate, sweep_gates
 from evids.metrics import paired_bootstrap, paired_permutation_test
 from evids.metrics.significance import UNDECIDED, comparison_verdict
-from evids.models.backbones import MODALITIES
+from evids.modalities import INPUT_FIELD, MODALITIES, MODALITY_STREAMS, MODALITY_TABLE, NOISE_STREAMS
 from evids.runfolder import mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
 from simulator.files import atomic_path, environment_record, write_atomic
 from simulator.jobs import job_context
 
 VARIANTS = ("clean", "standard", "all_spec", "iq")
-NOISE_STREAMS = ("audio", "video", "rf_spec", "rf_iq")
-MODALITY_STREAMS = {"audio": ("audio",), "video": ("video",), "rf": ("rf_spec", "rf_iq")}
+#: the sweep's unimodal rows (after the fusion rules): row name -> the head of the swept modality
+SWEEP_HEADS = {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}
 
 
 # ------------------------------------------------------------------------------------------
@@ -77,14 +78,15 @@ def _versions() -> dict[str, str]:
 
 @dataclass
 class Context:
-    """A run in memory: config, data, models and the cached per-variant outputs."""
+    """A run in memory: config, data, models, the outputs store and the chosen gate."""
 
     run_dir: Path
     cfg: ExperimentConfig
     prep: Prepared
     models: list[Models] | None = None
     progress: bool = True
-    cache: dict = field(default_factory=dict)
+    store: OutputsStore = field(default_factory=OutputsStore)
+    gate: tuple[GateParams, dict] | None = None     # condition (f)'s gate, chosen on val once
 
     @property
     def test(self) -> list[int]:
@@ -117,12 +119,12 @@ class Context:
         once per (its own noise entries, seed, run): an untouched modality reuses the clean outputs,
         and variants that share a modality's noise (standard, all_spec and iq share audio and video)
         share its degraded inputs and encoding."""
-        key = (variant, seed, split, run, tuple(sorted((k, repr(v)) for k, v in override.items())))
-        if key in self.cache:
-            return self.cache[key]
+        key = OutputsKey(variant, seed, split, run, noise_desc(override))
+        if key in self.store.outputs:
+            return self.store.outputs[key]
         noise = {k: v for k, v in (override or self.noise_kwargs(variant)).items()
                  if k in NOISE_STREAMS and v}
-        clean = self.cache.get(("clean", 0, split, run, ())) if noise else None
+        clean = self.store.clean(split, run) if noise else None
         per = []
         for m, modality in enumerate(MODALITIES):
             mine = {k: v for k, v in noise.items() if k in MODALITY_STREAMS[modality]}
@@ -132,36 +134,29 @@ class Context:
                 per.append(self._modality_outputs(modality, mine, seed if mine else 0, split, run))
         out = Outputs(*(np.stack(arrays) for arrays in zip(*per)))
         if not noise:                   # clean outputs serve every seed (0 is the canonical key)
-            self.cache_clean(out, split, run)
-        self.cache[key] = out
+            self.store.put_clean(out, split, run, self.cfg.protocol.noise_seeds)
+        self.store.outputs[key] = out
         return out
-
-    def cache_clean(self, out: Outputs, split: str, run: int) -> None:
-        """Cache clean outputs under every seed's key (noise-free outputs do not depend on it)."""
-        for s in (0, *self.cfg.protocol.noise_seeds):
-            self.cache[("clean", s, split, run, ())] = out
 
     def _modality_outputs(self, modality: str, noise: dict, seed: int, split: str, run: int) -> tuple:
         """(logit, alpha, emb) of one modality under its own noise entries (cached per run; the
         degraded inputs are cached across runs until drop_inputs)."""
-        desc = tuple(sorted((k, repr(v)) for k, v in noise.items()))
-        key = ("modality", modality, seed, split, run, desc)
-        if key not in self.cache:
-            pkey = ("inputs", modality, seed, split, desc)
-            x = self.cache.get(pkey)
-            if x is None:
-                kw = {"rf_range_db": self.prep.rf_range_db, "rf_config": self.prep.rf_config, **noise}
-                field_name = {"audio": "mfcc", "video": "video", "rf": "rf"}[modality]
-                x = np.concatenate([getattr(degrade_clip(self.prep.clips[i], i, seed, **kw), field_name)
-                                    for i in self.prep.split[split]])
-                self.cache[pkey] = x
-            self.cache[key] = encode_modality(self.models[run], modality, x)
-        return self.cache[key]
+        desc = noise_desc(noise)
+
+        def degraded() -> np.ndarray:
+            kw = {"rf_range_db": self.prep.rf_range_db, "rf_config": self.prep.rf_config, **noise}
+            return np.concatenate([getattr(degrade_clip(self.prep.clips[i], i, seed, **kw), INPUT_FIELD[modality])
+                                   for i in self.prep.split[split]])
+
+        def encoded() -> tuple:
+            x = self.store.degraded_inputs(InputsKey(modality, seed, split, desc), degraded)
+            return encode_modality(self.models[run], modality, x)
+
+        return self.store.modality_outputs(ModalityKey(modality, seed, split, run, desc), encoded)
 
     def drop_inputs(self) -> None:
         """Free cached degraded inputs (outputs stay cached)."""
-        for k in [k for k in self.cache if isinstance(k, tuple) and k and k[0] == "inputs"]:
-            del self.cache[k]
+        self.store.drop_inputs()
 
 
 def _noise_kwargs(cfg: ExperimentConfig, prep: Prepared, variant: str) -> dict:
@@ -262,12 +257,12 @@ def _aggregate(per_seed: list[dict]) -> dict:
 
 
 def _gate_params(ctx: Context) -> tuple[GateParams, dict]:
-    if "gate" not in ctx.cache:
+    if ctx.gate is None:
         seed = ctx.cfg.protocol.noise_seeds[0]
         val = ctx.outputs("standard", seed, "val")
-        ctx.cache["gate"] = choose_gate(val.alpha, ctx.labels("val"), ctx.clip_ids("val"), ctx.cfg.gate,
-                                        ctx.cfg.gate.max_val_accuracy_drop, ctx.cfg.fusion.construction)
-    return ctx.cache["gate"]
+        ctx.gate = choose_gate(val.alpha, ctx.labels("val"), ctx.clip_ids("val"), ctx.cfg.gate,
+                               ctx.cfg.gate.max_val_accuracy_drop, ctx.cfg.fusion.construction)
+    return ctx.gate
 
 
 #: paired comparisons (A, B, name); the objective's effect is each modality's EDL vs sigmoid head
@@ -366,9 +361,9 @@ def stage_evaluate(ctx: Context) -> dict:
     results = dict(_map_groups(ctx, groups, (conds, y, cid, gate), "evaluating conditions"))
     for group in groups:                                   # accumulate in job order (deterministic)
         for variant, seed, run, out, items in results[group]:
-            ctx.cache[(variant, seed, "test", run, ())] = out
+            ctx.store.outputs[OutputsKey(variant, seed, "test", run)] = out
             if variant == "clean":
-                ctx.cache_clean(out, "test", run)
+                ctx.store.put_clean(out, "test", run, cfg.protocol.noise_seeds)
             for key, m, ok, pred in items:
                 per[key].append(m)
                 correct[key].append(ok)
@@ -485,18 +480,18 @@ def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
     torch.set_num_threads(cfg.models.torch_threads)
     y, cid = ctx.labels(), ctx.clip_ids()
     name = getattr(sc, modality)
-    stream = {"audio": "audio", "video": "video", "rf": "rf_iq" if name.startswith("rf.") and not name.startswith(
-        "rf.spec") else "rf_spec"}[modality]
+    import degradations
+
+    stream = MODALITY_TABLE[modality].stream_of(degradations.REGISTRY[name].modality)  # validated: it has one
     if stream == "rf_iq" and not ctx.has_iq():
         return job, []
     per: dict[str, list[dict]] = {}
     for seed, run in [(s_, r_) for s_ in seeds for r_ in ctx.runs]:
         out = ctx.outputs("clean", 0, run=run) if sev == 0 else ctx.outputs(
             "sweep", seed, run=run, **{stream: [NoiseEntry(name=name, severity=sev)]})
-        for rule in (*FUSION_RULES, "unimodal_sigmoid", "unimodal_edl"):
-            cond = Condition(rule, rule, "sweep",
-                             {"unimodal_sigmoid": "sigmoid", "unimodal_edl": "edl"}.get(rule, rule),
-                             modality if rule.startswith("unimodal") else None)
+        for rule in (*FUSION_RULES, *SWEEP_HEADS):
+            head = SWEEP_HEADS.get(rule)        # a unimodal row: the swept modality's own head
+            cond = Condition(rule, rule, "sweep", head or rule, modality if head else None)
             pred = predict_condition(cond, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction,
                                      None)
             m = metrics_of(pred, y, cfg.ece_bins)
@@ -573,7 +568,7 @@ def _swap_program(ctx: Context, prog) -> dict:
     flips, conf, C, FB, acc, dis = [], [], [], [], {}, []
     dis_acc = {"ds": [], "average": []}
     where = []
-    ctx.cache.setdefault("conflict_correct", {})[prog.key] = []
+    runs_c: list[dict[str, np.ndarray]] = []        # per training run: each rule's correctness on T
     for run in ctx.runs:
         full = ctx.outputs("clean", 0, run=run)
         clean = Outputs(full.logit[:, rows], full.alpha[:, rows], full.emb[:, rows])
@@ -602,13 +597,11 @@ def _swap_program(ctx: Context, prog) -> dict:
                 where.append({"clip": str(cid[k]), "segment": seg, "label": int(y[k]),
                               "ds": int(preds["ds"][k]), "average": int(preds["average"][k]),
                               "alpha": np.round(out.alpha[:, k], 3).tolist()})
-        ctx.cache.setdefault("conflict_correct", {}).setdefault(prog.key, []).append(
-            {r: (preds[r] == y)[T] for r in ("ds", "average")})
+        runs_c.append({r: (preds[r] == y)[T] for r in ("ds", "average")})
     Cs = np.concatenate(C)
     flip = float(np.mean(flips))
     status = ("inert" if flip < cc.inert_flip_rate else
               "bites" if flip >= cc.min_flip_rate else "weak (flips fewer than the target share)")
-    runs_c = ctx.cache["conflict_correct"][prog.key]
     ds_c = np.mean([r["ds"] for r in runs_c], axis=0)
     av_c = np.mean([r["average"] for r in runs_c], axis=0)
     comp = compare(ctx, f"DS vs average, {prog.key} targeted segments", ds_c, av_c, scn[T])

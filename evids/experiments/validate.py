@@ -10,12 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from evids.modalities import PROTOCOL_MODALITY, SWEEP_MODALITY
 from scenes.errors import UserInputError
 
-#: protocol list -> the degradation modality its entries must have
-PROTOCOL_MODALITY = {"audio": "audio", "video": "rgb", "rf_spec": "rf_spec", "rf_iq": "rf_iq"}
-#: sweep field -> allowed modalities (rf may be spectrogram- or I/Q-level)
-SWEEP_MODALITY = {"audio": ("audio",), "video": ("rgb",), "rf": ("rf_spec", "rf_iq")}
 MAX_SEED = 2 ** 32 - 1
 
 

@@ -20,10 +20,10 @@ import torch
 from torch import Tensor, nn
 
 from evids.heads import BaselineHead, EvidentialHead
+from evids.modalities import MODALITIES as MODALITIES  # re-exported: the table lives in evids.modalities
+from evids.modalities import Modality as Modality
 
-Modality = Literal["audio", "video", "rf"]
 HeadKind = Literal["sigmoid", "evidential"]
-MODALITIES: tuple[Modality, ...] = ("audio", "video", "rf")
 
 
 class AudioLeNet(nn.Module):

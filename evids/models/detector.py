@@ -206,7 +206,10 @@ def detection_loss(out: DetectorOutput, label: Tensor, box_target: Tensor, epoch
         target = torch.where(pos, 0, 1)[valid]
         cls = edl_loss(out.alpha[valid], target, epoch, anneal_epochs, reduction="sum") / n_pos
     else:
-        cls = bce_loss(out.logit[valid], pos[valid].to(out.logit.dtype), reduction="sum") / n_pos
+        logit = out.logit
+        if logit is None:
+            raise ValueError("detector output has neither alpha (evidential) nor logit (sigmoid)")
+        cls = bce_loss(logit[valid], pos[valid].to(logit.dtype), reduction="sum") / n_pos
     if bool(pos.any()):
         pred = out.box.permute(0, 2, 3, 1)[pos]
         tgt = box_target.permute(0, 2, 3, 1)[pos]

@@ -14,9 +14,8 @@ from typing import Any
 import numpy as np
 
 from evids.metrics.significance import comparison_verdict, separating_digits, verdict_sentence
+from evids.modalities import MODALITIES
 from simulator.files import atomic_path
-
-MODALITIES = ("audio", "video", "rf")
 
 
 def _fig(w: float, h: float):

@@ -25,6 +25,7 @@ import json
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -46,7 +47,7 @@ def absolute_humidity_g_m3(air_temperature_k: float, relative_humidity: float) -
 def tables() -> dict:
     """The shipped LOWTRAN7 tables as numpy arrays (loaded once per process)."""
     raw = json.loads(TABLE_PATH.read_text())
-    sky = {}
+    sky: dict[str, dict[str, Any]] = {}
     for name, s in raw["sky"].items():
         el = np.radians(np.asarray(s["elevation_deg"], float))
         order = np.argsort(el)

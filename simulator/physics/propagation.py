@@ -115,6 +115,7 @@ def two_ray_path_gain(tx_m: np.ndarray, rx_m: np.ndarray, frequency_hz: np.ndarr
         r2 = np.maximum(np.linalg.norm(d2, axis=-1), 1.0)
         leave = d2 * np.array([1.0, 1.0, -1.0])            # direction leaving the real tx (downwards)
         g2 = antenna_gain(tx_antenna, leave, tx_axis) * antenna_gain(rx_antenna, -d2, rx_axis)
+        gamma: complex | np.ndarray
         if isinstance(reflection, str):
             grazing = np.arcsin(np.clip((tx[..., 2] + rx[..., 2]) / r2, 0.0, 1.0))
             gamma = ground_reflection_coefficient(grazing, float(np.mean(f)), polarization=reflection,

@@ -36,6 +36,8 @@ def solar_elevation_azimuth_deg(when_utc: dt.datetime, latitude_deg: float, long
 def sun_elevation_azimuth_deg(sun: Sun) -> tuple[float, float]:
     if sun.elevation_deg is not None and sun.azimuth_deg is not None:
         return sun.elevation_deg, sun.azimuth_deg
+    if sun.datetime_utc is None or sun.latitude_deg is None or sun.longitude_deg is None:  # the schema sets them
+        raise ValueError("sun: give elevation_deg and azimuth_deg, or datetime_utc, latitude_deg and longitude_deg")
     return solar_elevation_azimuth_deg(sun.datetime_utc, sun.latitude_deg, sun.longitude_deg)
 
 
@@ -98,10 +100,11 @@ class ThermalSky:
         self.atmosphere = atmosphere
         self.lwir = lwir_atmosphere.for_scene(atmosphere)
         self.air_radiance = self.lwir.air_radiance
-        self.clouds = CloudField(sky.clouds, seed) if sky.clouds is not None and sky.clouds.coverage > 0 else None
-        if self.clouds is not None:
-            self.cloud_altitude_m = sky.clouds.altitude_m
-            cloud_t = atmosphere.air_temperature_k - LAPSE_RATE_K_PER_M * sky.clouds.altitude_m
+        clouds = sky.clouds
+        self.clouds = CloudField(clouds, seed) if clouds is not None and clouds.coverage > 0 else None
+        if self.clouds is not None and clouds is not None:
+            self.cloud_altitude_m = clouds.altitude_m
+            cloud_t = atmosphere.air_temperature_k - LAPSE_RATE_K_PER_M * clouds.altitude_m
             self.cloud_radiance = float(thermal.band_radiance(cloud_t))
 
     def clear_radiance(self, directions: np.ndarray) -> np.ndarray:

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from scenes.defaults import offset_for
-from scenes.schema import Scenario, Target
+from scenes.schema import HelicopterRotor, Scenario, Target
 from simulator.physics import thermal
 from simulator.physics.sky import ThermalSky
 from simulator.physics.trajectory import positions_m
@@ -215,6 +215,13 @@ def _part_temperatures(scenario: Scenario, target: Target, position: np.ndarray,
     return out
 
 
+def _helicopter_rotor(target: Target) -> HelicopterRotor:
+    """A helicopter's rotor record (the scene schema sets one for every helicopter)."""
+    if target.rotor is None:
+        raise ValueError(f"target {target.name!r}: a helicopter needs its rotor record")
+    return target.rotor
+
+
 def pan_tilt_pointing(aim_m: np.ndarray, origin_m: np.ndarray, tracking, frame_rate_hz: float,
                       rng_error: np.random.Generator, rng_loss: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """(forward (F, 3) unit, lost (F,) bool) of a pan-tilt head tracking ``aim_m`` (see
@@ -238,8 +245,8 @@ def pan_tilt_pointing(aim_m: np.ndarray, origin_m: np.ndarray, tracking, frame_r
         draws = rng_loss.random((n, 2))
         starts = draws[:, 0] < tracking.loss_rate_hz * dt
         lengths = tracking.loss_s[0] + (tracking.loss_s[1] - tracking.loss_s[0]) * draws[:, 1]
-        for i in np.flatnonzero(starts):
-            lost[i:i + max(1, int(round(lengths[i] * frame_rate_hz)))] = True
+        for s0 in np.flatnonzero(starts):
+            lost[s0:s0 + max(1, int(round(lengths[s0] * frame_rate_hz)))] = True
     alpha = 1.0 - np.exp(-dt / tracking.lag_s) if tracking.lag_s > 0 else 1.0
     head = np.empty((n, 2))
     head[0] = (az[0] + err[0, 0] / max(np.cos(el[0]), 0.1), el[0] + err[0, 1])
@@ -311,7 +318,7 @@ def build_timeline(scenario: Scenario, seed: int, n_frames: int | None = None) -
         n_rotors = _rotor_count(target.kind)
         hover = rotor_hover_rpm(target.kind, target.size_m)
         if target.kind == "helicopter":   # constant-speed rotor (governed); collective pitch varies instead
-            base_rpm = np.full(count, float(target.rotor.main_rpm))
+            base_rpm = np.full(count, float(_helicopter_rotor(target).main_rpm))
         elif target.kind == "fixed_wing":
             base_rpm = hover * np.sqrt(np.clip(np.linalg.norm(vel, axis=-1) / 15.0, 0.3, 3.0))
         else:
@@ -326,7 +333,7 @@ def build_timeline(scenario: Scenario, seed: int, n_frames: int | None = None) -
             target_id=index + 1, name=target.name, kind=target.kind, size_m=target.size_m,
             position_m=pos, velocity_mps=vel, rotation=rotation, rotor_rpm=rpm, rotor_angle_rad=angle,
             flap_phase_rad=flap,
-            n_blades=target.rotor.main_blades if target.kind == "helicopter" else (2 if n_rotors else 0),
+            n_blades=_helicopter_rotor(target).main_blades if target.kind == "helicopter" else (2 if n_rotors else 0),
         )
         track.part_temperature_k = _part_temperatures(scenario, target, pos, rig_origin, sky, times)
         tracks.append(track)

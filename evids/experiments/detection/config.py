@@ -10,23 +10,74 @@ run, tracker and gate settings, and bootstrap settings. :data:`DEMO_CONFIG` is w
 from __future__ import annotations
 
 import copy
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from scenes.errors import UserInputError
 
-CONDITIONS = {
-    "a_sigmoid": "(a) sigmoid single-stream (RGB and thermal)",
-    "b_evidential": "(b) evidential single-stream (RGB and thermal)",
-    "c_evidential_tau": "(c) evidential + detection-vacuity threshold before tracking (tau_det)",
-    "d_average": "(d) evidential + decision-level average of the two streams",
-    "e_ds": "(e) evidential + Dempster-Shafer fusion of the two streams",
-    "f_ds_gated": "(f) (e) + temporal gating between RGB and thermal (at least one on)",
-    "g_feature_fusion": "(g) feature-level channel-attention fusion (ADFM-like), sigmoid head",
-    "h_feature_fusion_ts": "(h) (g) + temperature scaling (calibration control)",
-}
+SINGLE = ("rgb", "thermal")
+FUSED = ("fused",)
+
+
+@dataclass(frozen=True)
+class DetectionCondition:
+    """One condition (a)-(h) of the detection experiment: what it runs and how it is fitted.
+
+    A condition's detections are keyed ``"<key>/<stream>"`` (see :func:`condition_key`)."""
+
+    key: str
+    description: str
+    streams: tuple[str, ...]            # SINGLE (one result per camera) or FUSED
+    models: tuple[str, ...]             # the trained detectors it reads (``train.MODEL_IDS``)
+    evidential: bool                    # its detections carry a vacuity (ranked as an uncertainty score)
+    tau_det: bool = False               # tracking fit also searches a detection-vacuity threshold
+    fit_after: Literal["gate", "temperature"] | None = None  # its detections exist only after that val fit
+    requires: tuple[str, str] | None = None  # (a condition it reuses, why): both must be in the config
+    crop_uncertainty: bool = False      # crop-level re-evaluation of its top detections (per camera)
+
+
+_EVIDENTIAL = ("rgb_evidential", "thermal_evidential")
+DETECTION_CONDITIONS: dict[str, DetectionCondition] = {c.key: c for c in (
+    DetectionCondition("a_sigmoid", "(a) sigmoid single-stream (RGB and thermal)", SINGLE,
+                       ("rgb_sigmoid", "thermal_sigmoid"), evidential=False),
+    DetectionCondition("b_evidential", "(b) evidential single-stream (RGB and thermal)", SINGLE, _EVIDENTIAL,
+                       evidential=True, crop_uncertainty=True),
+    DetectionCondition("c_evidential_tau", "(c) evidential + detection-vacuity threshold before tracking (tau_det)",
+                       SINGLE, _EVIDENTIAL, evidential=True, tau_det=True),
+    DetectionCondition("d_average", "(d) evidential + decision-level average of the two streams", FUSED,
+                       _EVIDENTIAL, evidential=True),
+    DetectionCondition("e_ds", "(e) evidential + Dempster-Shafer fusion of the two streams", FUSED, _EVIDENTIAL,
+                       evidential=True),
+    DetectionCondition("f_ds_gated", "(f) (e) + temporal gating between RGB and thermal (at least one on)", FUSED,
+                       _EVIDENTIAL, evidential=True, fit_after="gate",
+                       requires=("e_ds", "the gate reuses its fitted tracking thresholds")),
+    DetectionCondition("g_feature_fusion", "(g) feature-level channel-attention fusion (ADFM-like), sigmoid head",
+                       FUSED, ("fusion_sigmoid",), evidential=False),
+    DetectionCondition("h_feature_fusion_ts", "(h) (g) + temperature scaling (calibration control)", FUSED,
+                       ("fusion_sigmoid",), evidential=False, fit_after="temperature",
+                       requires=("g_feature_fusion", "its temperature-scaled twin")),
+)}
+#: condition key -> its description (the summary's ``conditions`` record)
+CONDITIONS: dict[str, str] = {k: c.description for k, c in DETECTION_CONDITIONS.items()}
+
+
+def condition_key(condition: str, stream: str) -> str:
+    """The key of one condition-stream result, e.g. ``"e_ds/fused"``."""
+    return f"{condition}/{stream}"
+
+
+def condition_keys(cfg: DetectionConfig) -> list[str]:
+    """Every condition-stream key the config runs, in condition then stream order."""
+    return [condition_key(c, s) for c in cfg.conditions for s in DETECTION_CONDITIONS[c].streams]
+
+
+def split_key(key: str) -> tuple[DetectionCondition, str]:
+    """``"e_ds/fused"`` -> (the e_ds record, ``"fused"``)."""
+    condition, stream = key.split("/")
+    return DETECTION_CONDITIONS[condition], stream
 
 
 class _Model(BaseModel):
@@ -139,10 +190,10 @@ class DetectionConfig(_Model):
 
     @model_validator(mode="after")
     def _known(self) -> "DetectionConfig":
-        if "f_ds_gated" in self.conditions and "e_ds" not in self.conditions:
-            raise ValueError("conditions: f_ds_gated needs e_ds (the gate reuses its fitted tracking thresholds)")
-        if "h_feature_fusion_ts" in self.conditions and "g_feature_fusion" not in self.conditions:
-            raise ValueError("conditions: h_feature_fusion_ts needs g_feature_fusion (its temperature-scaled twin)")
+        for c in self.conditions:
+            req = DETECTION_CONDITIONS[c].requires
+            if req is not None and req[0] not in self.conditions:
+                raise ValueError(f"conditions: {c} needs {req[0]} ({req[1]})")
         if len(set(self.conditions)) != len(self.conditions):
             raise ValueError("conditions: each condition may appear once")
         if self.crop_px % 4:

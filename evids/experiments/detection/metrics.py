@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from evids.metrics import box_iou, clustered_bootstrap, state_accuracy, uauc
 
@@ -169,7 +170,7 @@ def per_frame_state_values(pred: list[list[float] | None], gt: list[list[float] 
 
 
 # ------------------------------------------------------------------------------------ statistics
-def paired_comparison(a: np.ndarray, b: np.ndarray, seed: int, n_resamples: int) -> dict[str, float]:
+def paired_comparison(a: ArrayLike, b: ArrayLike, seed: int, n_resamples: int) -> dict[str, float]:
     """Per-sequence values of systems A and B -> mean difference A - B, sequence-bootstrap 95 % CI,
     sign-flip permutation p value, MDE = 2.8 s / sqrt(n)."""
     a, b = np.asarray(a, float), np.asarray(b, float)

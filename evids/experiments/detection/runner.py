@@ -1,6 +1,7 @@
 """The detection experiment: ``train`` (data + five detectors), ``evaluate`` (conditions (a)-(h),
 thresholds fitted on val only, tracking, metrics through pycocotools / TrackEval / the Anti-UAV
-formula on exported files, uncertainty analyses, gating time) and the headline answers.
+formula on exported files, uncertainty analyses, gating time); the statistics and headline answers
+from its tables are in :mod:`evids.experiments.detection.summary`.
 
 Run folder: ``config.json`` (resolved config, every seed and hyper-parameter), ``data.json`` (the
 datasets, their manifests' ids and the load-time degradations), ``models/*.pt`` + ``train.json``,
@@ -27,8 +28,15 @@ from evids.experiments.detection.conditions import (
     run_model,
     single_stream,
 )
-from evids.experiments.detection.config import CONDITIONS, DetectionConfig, load_detection_config
+from evids.experiments.detection.config import (
+    DETECTION_CONDITIONS,
+    DetectionConfig,
+    condition_keys,
+    load_detection_config,
+    split_key,
+)
 from evids.experiments.detection.data import SequenceData, crop_resize, dataset_entries, inputs, load_sequence
+from evids.experiments.detection.summary import summarise_run
 from evids.experiments.detection.tracking import FrameDetections, run_tracker, tracking_on_absence
 from evids.experiments.detection.train import MODEL_IDS, build_model, train_model
 from evids.runfolder import create_run_folder, mark_stage, write_csv, write_json
@@ -38,23 +46,12 @@ from simulator.jobs import run_jobs
 
 Log = Callable[[str], None]
 
-STREAM_KEYS = {
-    "a_sigmoid": ("rgb", "thermal"), "b_evidential": ("rgb", "thermal"), "c_evidential_tau": ("rgb", "thermal"),
-    "d_average": ("fused",), "e_ds": ("fused",), "f_ds_gated": ("fused",), "g_feature_fusion": ("fused",),
-    "h_feature_fusion_ts": ("fused",),
-}
 MATCH_PX = 24.0
 
 
 def models_needed(conditions: list[str]) -> list[str]:
-    need = set()
-    for c in conditions:
-        if c == "a_sigmoid":
-            need |= {"rgb_sigmoid", "thermal_sigmoid"}
-        elif c in ("g_feature_fusion", "h_feature_fusion_ts"):
-            need.add("fusion_sigmoid")
-        else:
-            need |= {"rgb_evidential", "thermal_evidential"}
+    """The trained detectors the conditions read, in MODEL_IDS order."""
+    need = {m for c in conditions for m in DETECTION_CONDITIONS[c].models}
     return [m for m in MODEL_IDS if m in need]
 
 
@@ -292,7 +289,7 @@ def fuse_maps_at_target(maps: dict[str, StreamMaps], seq: SequenceData):
 
 
 def gt_of(seq: SequenceData, key: str) -> list:
-    return seq.gt_thermal if key.endswith("/thermal") else seq.gt_rgb
+    return seq.gt_thermal if split_key(key)[1] == "thermal" else seq.gt_rgb
 
 
 # ------------------------------------------------------------------------------------ fitting
@@ -368,10 +365,6 @@ def fit_temperature_on_val(val: list[tuple[SequenceData, dict]]) -> float:
 
 
 # ------------------------------------------------------------------------------------- evaluate
-def _keys(cfg: DetectionConfig) -> list[str]:
-    return [f"{c}/{s}" for c in cfg.conditions for s in STREAM_KEYS[c]]
-
-
 def _tracker_name(key: str) -> str:
     return key.replace("/", "__")
 
@@ -429,17 +422,19 @@ def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, te
         if key not in out["dets"]:
             continue
         frames, decoded = out["dets"][key]
+        cond, stream = split_key(key)
+        thermal = stream == "thermal"
         gt = gt_of(seq, key)
         f = fitted[key]
         steps = run_tracker(frames, f["det_threshold"], f["theta"], cfg.tracker.search_px, f.get("tau_det"))
         boxes_out = [s.box for s in steps]
-        M.write_mot_tracker(exports / "mot" / "trackers" / f"{'IR' if key.endswith('/thermal') else 'RGB'}-"
+        M.write_mot_tracker(exports / "mot" / "trackers" / f"{'IR' if thermal else 'RGB'}-"
                                                            f"{seq.set_name}"
                             / _tracker_name(key) / "data" / f"{video}.txt", boxes_out, [s.score for s in steps],
                             [s.track_id for s in steps])
-        label_file = exports / "antiuav" / seq.set_name / (video if key.endswith("/thermal")
+        label_file = exports / "antiuav" / seq.set_name / (video if thermal
                                                            else f"{video}_visible") / (
-            "IR_label.json" if key.endswith("/thermal") else "visible.json")
+            "IR_label.json" if thermal else "visible.json")
         sa = M.antiuav_state_accuracy(label_file, boxes_out)
         vals = M.per_frame_state_values(boxes_out, gt)
         th_blind = np.array([g is not None for g in gt]) & ~seq.thermal_observed
@@ -455,7 +450,7 @@ def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, te
         coco_dets.setdefault(f"{seq.set_name}|{key}", []).extend(
             (video, t, fr.boxes, fr.scores) for t, fr in enumerate(frames))
         for t, (fr, _decoded) in enumerate(zip(frames, decoded)):
-            all_gt = (seq.boxes_thermal if key.endswith("/thermal") else seq.boxes_rgb)[t]
+            all_gt = (seq.boxes_thermal if thermal else seq.boxes_rgb)[t]
             tp = M.detections_matched(fr.boxes, fr.scores, all_gt)
             for i in range(fr.boxes.shape[0]):
                 p = float(fr.scores[i])
@@ -463,8 +458,7 @@ def _evaluate_sequence(seq: SequenceData, models, cfg: DetectionConfig, gate, te
                 det_rows.append({"set": seq.set_name, "sequence": video, "key": key, "frame": t, "score": p,
                                  "unc": float(fr.uncertainty[i]), "entropy": ent, "tp": bool(tp[i]),
                                  "area": float(fr.boxes[i, 2] * fr.boxes[i, 3])})
-        if key.startswith("b_evidential/"):
-            stream = key.split("/")[1]
+        if cond.crop_uncertainty:
             model = models[f"{stream}_evidential"]
             x = inputs(seq)
             other = "thermal" if stream == "rgb" else "rgb"
@@ -526,7 +520,7 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
         write_json(run_dir / "data.json", data)
     torch.set_num_threads(cfg.train.threads)
     models = load_models(run_dir, cfg)
-    keys = _keys(cfg)
+    keys = condition_keys(cfg)
 
     # ---- fit every threshold on val (never on test)
     log("evaluate: fitting thresholds on val")
@@ -537,15 +531,15 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
     temperature = fit_temperature_on_val(val) if "h_feature_fusion_ts" in cfg.conditions else None
     gate = None
     for key in keys:
-        if key.startswith(("f_", "h_")):
+        if split_key(key)[0].fit_after is not None:
             continue
-        fitted[key] = fit_tracking(val, key, cfg, tau_det_grid=key.startswith("c_"))
+        fitted[key] = fit_tracking(val, key, cfg, tau_det_grid=split_key(key)[0].tau_det)
     if "f_ds_gated" in cfg.conditions:
         gate = fit_gate(val, val_maps, cfg, fitted["e_ds/fused"])
     if gate is not None or temperature is not None:
         val = [(s, condition_dets(s, m, cfg, gate, temperature)) for s, m in zip(val_seqs, val_maps)]
         for key in keys:
-            if key.startswith(("f_", "h_")):
+            if split_key(key)[0].fit_after is not None:
                 fitted[key] = fit_tracking(val, key, cfg)
     del val_maps, val
     write_json(run_dir / "fitted.json", {"tracking": fitted, "gate": gate, "temperature": temperature,
@@ -613,14 +607,14 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
     ap50 = {}
     for sk, dets in coco_dets.items():
         set_name, key = sk.split("|")
-        modality = "ir" if key.endswith("/thermal") else "rgb"
+        modality = "ir" if split_key(key)[1] == "thermal" else "rgb"
         ap50[sk] = M.coco_ap50(exports / "coco" / f"{set_name}_{modality}.json",
                                exports / "coco" / "results" / f"{set_name}__{_tracker_name(key)}.json", dets,
                                image_ids[f"{set_name}/{modality}"])
     mot = {}
     for set_name in test_sets:
-        for bench, suffix in (("RGB", ("/rgb", "/fused")), ("IR", ("/thermal",))):
-            trackers = [_tracker_name(k) for k in keys if k.endswith(suffix)]
+        for bench, streams in (("RGB", ("rgb", "fused")), ("IR", ("thermal",))):
+            trackers = [_tracker_name(k) for k in keys if split_key(k)[1] in streams]
             trackers = [t for t in trackers if (exports / "mot" / "trackers" / f"{bench}-{set_name}" / t).is_dir()]
             if trackers:
                 res = M.trackeval_mot(exports / "mot" / "gt", exports / "mot" / "trackers", bench, set_name, trackers)
@@ -636,44 +630,6 @@ def evaluate(run_dir: Path, log: Log = print) -> dict[str, Any]:
     log("evaluate: statistics")
     summary = summarise_run(run_dir)
     mark_stage(run_dir, "evaluate", time.perf_counter() - t0)
-    return summary
-
-
-_TEXT_FIELDS = {"set", "sequence", "key", "stream"}
-
-
-def _read_rows(path: Path) -> list[dict[str, Any]]:
-    import csv
-
-    def conv(k: str, v: str) -> Any:
-        if k in _TEXT_FIELDS:
-            return v
-        if v in ("True", "False"):
-            return v == "True"
-        if v == "":
-            return float("nan")
-        try:
-            return float(v)
-        except ValueError:
-            return v
-
-    with open(path, newline="") as fh:
-        return [{k: conv(k, v) for k, v in row.items()} for row in csv.DictReader(fh)]
-
-
-def summarise_run(run_dir: Path) -> dict[str, Any]:
-    """Statistics and headline answers from a run folder's tables (re-runnable without the models)."""
-    run_dir = Path(run_dir)
-    cfg = load_detection_config(json.loads((run_dir / "config.json").read_text()))
-    t = run_dir / "tables"
-    tools = json.loads((t / "tools.json").read_text())
-    fitted = json.loads((run_dir / "fitted.json").read_text())
-    summary = summarise(cfg, _read_rows(t / "per_sequence.csv"), _read_rows(t / "detections.csv"),
-                        _read_rows(t / "crops.csv"),
-                        _read_rows(t / "frames.csv"), tools["ap50"], tools["mot"], fitted["tracking"], fitted["gate"])
-    summary["gate_timing"] = json.loads((t / "gate_timing.json").read_text())
-    summary["headline"] = headline(summary, cfg)
-    write_json(run_dir / "metrics.json", summary)
     return summary
 
 
@@ -701,150 +657,6 @@ def _example_frames(seq: SequenceData, maps, out, fitted, cfg) -> dict[str, np.n
         res["u_fused"] = u[idx].numpy()
     res.update({k.replace("/", "__"): v for k, v in top.items()})
     return res
-
-
-# ------------------------------------------------------------------------------------ summaries
-def _mean(rows: list[dict], field: str) -> float:
-    v = np.array([r[field] for r in rows if r.get(field) is not None], float)
-    v = v[np.isfinite(v)]
-    return float(v.mean()) if v.size else float("nan")
-
-
-def summarise(cfg, per_seq, det_rows, crop_rows, frame_rows, ap50, mot, fitted, gate) -> dict[str, Any]:
-    from evids.experiments.detection import metrics as M
-    from evids.metrics import detection_ece
-
-    seed, nb = cfg.bootstrap.seed, cfg.bootstrap.n_resamples
-    nb_u = cfg.bootstrap.n_resamples_uauc
-    keys = _keys(cfg)
-    sets = sorted({r["set"] for r in per_seq})
-    table = []
-    for set_name in sets + ["all"]:
-        for key in keys:
-            rows = [r for r in per_seq if r["key"] == key and (set_name == "all" or r["set"] == set_name)]
-            if not rows:
-                continue
-            dets = [r for r in det_rows if r["key"] == key and (set_name == "all" or r["set"] == set_name)]
-            row = {"set": set_name, "key": key, "n_sequences": len(rows), "state_acc": _mean(rows, "state_acc"),
-                   "state_acc_penalised": _mean(rows, "state_acc_penalised"),
-                   "acc_thermal_blind": _mean(rows, "acc_thermal_blind"), "acc_rgb_blind": _mean(rows, "acc_rgb_blind"),
-                   "trk_on_abs": _mean(rows, "trk_on_abs"), "tracker_share": _mean(rows, "tracker_share")}
-            if set_name != "all":
-                row["ap50"] = ap50.get(f"{set_name}|{key}", float("nan"))
-                m = mot.get(f"{set_name}|{key}", {})
-                if "COMBINED_SEQ" in m:
-                    row.update({k: m["COMBINED_SEQ"][k] for k in ("mota", "idf1", "hota", "ids")})
-            if dets:
-                s = np.array([d["score"] for d in dets])
-                tp = np.array([d["tp"] for d in dets])
-                row["det_ece"] = detection_ece(s, tp)
-                row["n_detections"], row["n_tp"] = len(dets), int(tp.sum())
-            table.append(row)
-    # paired comparisons on per-sequence plain state accuracy (and thermal-blind frames)
-    pairs = [("b_evidential/rgb", "a_sigmoid/rgb"), ("b_evidential/thermal", "a_sigmoid/thermal"),
-             ("c_evidential_tau/rgb", "b_evidential/rgb"), ("c_evidential_tau/thermal", "b_evidential/thermal"),
-             ("e_ds/fused", "d_average/fused"), ("e_ds/fused", "g_feature_fusion/fused"),
-             ("f_ds_gated/fused", "e_ds/fused"), ("h_feature_fusion_ts/fused", "g_feature_fusion/fused"),
-             ("e_ds/fused", "b_evidential/rgb"), ("d_average/fused", "g_feature_fusion/fused")]
-    comps = []
-    for set_name in sets + ["all"]:
-        for a, b in pairs:
-            for field in ("state_acc", "acc_thermal_blind"):
-                ra = {r["sequence"]: r[field] for r in per_seq if r["key"] == a
-                      and (set_name == "all" or r["set"] == set_name)}
-                rb = {r["sequence"]: r[field] for r in per_seq if r["key"] == b
-                      and (set_name == "all" or r["set"] == set_name)}
-                common = sorted(set(ra) & set(rb))
-                if len(common) < 2:
-                    continue
-                c = M.paired_comparison([ra[s] for s in common], [rb[s] for s in common], seed, nb)
-                comps.append({"set": set_name, "a": a, "b": b, "metric": field, **c})
-    # uncertainty ranking at anchor level (decoded detections) and at crop level
-    unc = []
-    for key in keys:
-        dets = [d for d in det_rows if d["key"] == key]
-        if not dets:
-            continue
-        area = np.array([d["area"] for d in dets])
-        strata = M.area_stratum(area)
-        for stratum in ["all"] + [s for s, _, _ in M.AREA_STRATA]:
-            sel = np.ones(len(dets), bool) if stratum == "all" else strata == stratum
-            if sel.sum() == 0:
-                continue
-            err = ~np.array([d["tp"] for d in dets])[sel]
-            cl = np.array([d["sequence"] for d in dets])[sel]
-            scores = {"confidence": 1.0 - np.array([d["score"] for d in dets])[sel],
-                      "entropy": np.array([d["entropy"] for d in dets])[sel]}
-            if key.split("/")[0] in ("b_evidential", "c_evidential_tau", "d_average", "e_ds", "f_ds_gated"):
-                scores["vacuity"] = np.array([d["unc"] for d in dets])[sel]
-                tps = ~err
-                mean_u_tp = float(scores["vacuity"][tps].mean()) if tps.any() else np.nan
-                mean_u_fp = float(scores["vacuity"][err].mean()) if err.any() else np.nan
-            else:
-                mean_u_tp = mean_u_fp = np.nan
-            for name, u in scores.items():
-                unc.append({"level": "anchor", "key": key, "stratum": stratum, "score": name,
-                            "mean_u_tp": mean_u_tp if name == "vacuity" else np.nan,
-                            "mean_u_fp": mean_u_fp if name == "vacuity" else np.nan,
-                            **M.clustered_uauc(u, err, cl, seed, nb_u)})
-    for stream in ("rgb", "thermal"):
-        rows = [r for r in crop_rows if r["stream"] == stream]
-        if not rows:
-            continue
-        strata = M.area_stratum(np.array([r["area"] for r in rows]))
-        for stratum in ["all"] + [s for s, _, _ in M.AREA_STRATA]:
-            sel = np.ones(len(rows), bool) if stratum == "all" else strata == stratum
-            if sel.sum() == 0:
-                continue
-            err = ~np.array([r["tp"] for r in rows])[sel]
-            cl = np.array([r["sequence"] for r in rows])[sel]
-            for name in ("anchor_u", "crop_u", "crop_u_avg", "crop_u_ds_identical"):
-                u = np.array([r[name] for r in rows], float)[sel]
-                ok = np.isfinite(u)
-                if ok.sum() == 0:
-                    continue
-                unc.append({"level": "crop" if name != "anchor_u" else "anchor (same detections)",
-                            "key": f"b_evidential/{stream}",
-                            "stratum": stratum, "score": name, **M.clustered_uauc(u[ok], err[ok], cl[ok], seed, nb_u)})
-    # thermal vacuity against |dT| / NETD on frames with the target in the thermal frame
-    fr = [r for r in frame_rows if r["exist_thermal"] and np.isfinite(r["contrast_k"])
-          and np.isfinite(r["thermal_u_at_target"])]
-    vac = {}
-    if fr:
-        ratio = np.array([abs(r["contrast_k"]) / r["netd_k"] for r in fr])
-        u = np.array([r["thermal_u_at_target"] for r in fr])
-        p = np.array([r["thermal_p_at_target"] for r in fr])
-        cl = np.array([r["sequence"] for r in fr])
-        vac["spearman_u"] = M.spearman_clustered(ratio, u, cl, seed, nb_u)
-        vac["spearman_p"] = M.spearman_clustered(ratio, p, cl, seed, nb_u)
-        bins = [0, 1, 2, 4, 8, 16, 1e9]
-        vac["bins"] = [{"lo": lo, "hi": hi, "n": int(((ratio >= lo) & (ratio < hi)).sum()),
-                        "mean_u": float(u[(ratio >= lo) & (ratio < hi)].mean()) if ((ratio >= lo) & (ratio < hi)).any()
-                        else np.nan,
-                        "mean_p": float(p[(ratio >= lo) & (ratio < hi)].mean()) if ((ratio >= lo) & (ratio < hi)).any()
-                        else np.nan}
-                       for lo, hi in zip(bins[:-1], bins[1:])]
-        vac["points"] = {"ratio": ratio.tolist(), "u": u.tolist(), "set": [r["set"] for r in fr]}
-    conflict = {}
-    for set_name in sets:
-        c = np.array([r["ds_conflict_at_target"] for r in frame_rows if r["set"] == set_name and r["exist"]], float)
-        c = c[np.isfinite(c)]
-        if c.size:
-            conflict[set_name] = {"mean": float(c.mean()), "p90": float(np.quantile(c, 0.9)), "max": float(c.max()),
-                                  "n": int(c.size)}
-    obs = {}
-    for set_name in sets:
-        rows = [r for r in frame_rows if r["set"] == set_name and r["exist"]]
-        obs[set_name] = {"frames_with_target": len(rows), "rgb_observed": _mean(rows, "rgb_observed"),
-                         "thermal_observed": _mean(rows, "thermal_observed"),
-                         "absent_frames": sum(1 for r in frame_rows if r["set"] == set_name and not r["exist"]),
-                         "sequences": len({r["sequence"] for r in frame_rows if r["set"] == set_name})}
-    gate_rows = [r for r in per_seq if r["key"] == "_gate"]
-    gate_usage = {k: _mean(gate_rows, k)
-                  for k in ("rgb_evaluated", "thermal_evaluated", "rgb_fused", "thermal_fused")} if gate_rows else None
-    return {"table": table, "comparisons": comps, "uncertainty": unc, "vacuity_vs_contrast": vac,
-            "ds_conflict_at_target": conflict, "observability": obs, "gate_usage": gate_usage, "fitted": fitted,
-            "gate": gate, "conditions": {c: CONDITIONS[c] for c in cfg.conditions}}
 
 
 def time_gating(seqs: list[SequenceData], models, cfg: DetectionConfig, gate: dict[str, float]) -> dict[str, Any]:
@@ -891,85 +703,3 @@ def time_gating(seqs: list[SequenceData], models, cfg: DetectionConfig, gate: di
             "saving": 1.0 - t_gated / t_full if t_full > 0 else float("nan"),
             "evaluated_fraction": evaluated / max(2 * frames, 1), "loadavg_1m": load[0],
             "note": "measured inside the evaluate stage, machine load as printed"}
-
-
-def _verdict(c: dict | None, better: str, worse: str, unit: float = 100.0, what: str = "pp") -> str:
-    """The numbers and the verdict of the one rule (evids.metrics.significance.comparison_verdict)."""
-    from evids.metrics.significance import comparison_verdict, verdict_sentence
-
-    if c is None or not np.isfinite(c.get("diff", np.nan)):
-        return "not measured"
-    txt = (f"{better} - {worse} = {c['diff'] * unit:+.2f} {what} (sequence-bootstrap 95% CI "
-           f"[{c['ci_low'] * unit:+.2f}, {c['ci_high'] * unit:+.2f}], sign-flip p = {c['p']:.3f}, "
-           f"n = {c['n']} sequences, "
-           f"MDE {c['mde'] * unit:.2f} {what})")
-    verdict = comparison_verdict(c["diff"], c["ci_low"], c["ci_high"], c["mde"])
-    return txt + ": " + verdict_sentence(verdict, better, worse) + "."
-
-
-def _comp(summary, set_name, a, b, metric="state_acc"):
-    for c in summary["comparisons"]:
-        if c["set"] == set_name and c["a"] == a and c["b"] == b and c["metric"] == metric:
-            return c
-    return None
-
-
-def _unc(summary, level, key, score, stratum="all"):
-    for u in summary["uncertainty"]:
-        if u["level"] == level and u["key"] == key and u["score"] == score and u["stratum"] == stratum:
-            return u
-    return None
-
-
-def _uauc_txt(u) -> str:
-    if u is None or not np.isfinite(u.get("uauc", np.nan) if u.get("uauc") is not None else np.nan):
-        return "not estimable (one class missing)"
-    return f"{u['uauc']:.3f} [{u['ci_low']:.3f}, {u['ci_high']:.3f}] (n = {u['n']}, {u['n_error']} errors)"
-
-
-def headline(summary: dict[str, Any], cfg: DetectionConfig) -> dict[str, str]:
-    """The four headline questions, answered from the numbers by the one verdict rule (or 'undecided')."""
-    xs = cfg.crossover_set
-    out = {}
-    q1 = [_verdict(_comp(summary, xs, "e_ds/fused", "d_average/fused"), "DS", "average"),
-          _verdict(_comp(summary, xs, "e_ds/fused", "g_feature_fusion/fused"), "DS", "feature fusion"),
-          "On thermal-blind frames only: " + _verdict(_comp(summary, xs, "e_ds/fused", "d_average/fused",
-                                                            "acc_thermal_blind"),
-                                                     "DS", "average")]
-    out["q1_ds_through_crossover"] = f"State accuracy on the '{xs}' set. " + " ".join(q1)
-    v = summary.get("vacuity_vs_contrast", {})
-    if v.get("spearman_u"):
-        s = v["spearman_u"]
-        rises = s["ci_high"] < 0
-        out["q2_thermal_vacuity_vs_dT"] = (
-            f"Spearman rho(|dT|/NETD, thermal vacuity at the target cell) = {s['rho']:.3f} [{s['ci_low']:.3f}, "
-            f"{s['ci_high']:.3f}] "
-            f"over {s['n']} frames / {s.get('n_clusters', '?')} sequences: " +
-            ("vacuity rises as |dT| falls toward the NETD." if rises else
-             "vacuity does not rise as |dT| falls (the CI does not lie below 0)." if s["ci_low"] > 0
-             or s["ci_high"] >= 0 else ""))
-    else:
-        out["q2_thermal_vacuity_vs_dT"] = "not measured (no evidential thermal condition)"
-    parts = []
-    for stream in ("rgb", "thermal"):
-        a = _unc(summary, "anchor", f"b_evidential/{stream}", "vacuity")
-        c = _unc(summary, "crop", f"b_evidential/{stream}", "crop_u")
-        inv = a is not None and a.get("ci_high") is not None and np.isfinite(a["ci_high"]) and a["ci_high"] < 0.5
-        rec = c is not None and c.get("ci_low") is not None and np.isfinite(c["ci_low"]) and c["ci_low"] > 0.5
-        parts.append(f"{stream}: anchor-level vacuity UAUC {_uauc_txt(a)} "
-                     f"({'inverted' if inv else 'no inversion established'}); "
-                     f"crop-level {_uauc_txt(c)} "
-                     f"({'recovered (CI above 0.5)' if rec else 'not recovered (CI includes or is below 0.5)'}).")
-    out["q3_anchor_inversion_crop_recovery"] = " ".join(parts)
-    g = summary.get("gate_timing")
-    if g:
-        acc = _comp(summary, "all", "f_ds_gated/fused", "e_ds/fused")
-        out["q4_gating_saves_cpu"] = (
-            f"Batch-1 CPU time per frame: {g['full_s_per_frame'] * 1e3:.1f} ms without the gate, "
-            f"{g['gated_s_per_frame'] * 1e3:.1f} ms with it "
-            f"(saving {g['saving'] * 100:.1f} %, {g['evaluated_fraction'] * 100:.1f} % of stream forwards run; load "
-            f"average {g['loadavg_1m']:.1f}). "
-            f"Accuracy cost: " + _verdict(acc, "gated", "ungated"))
-    else:
-        out["q4_gating_saves_cpu"] = "not measured (condition f not run)"
-    return out

@@ -59,3 +59,24 @@ def test_override_degrades_only_its_stream_and_keeps_the_others_clean():
     for m, modality in enumerate(MODALITIES):
         same = np.array_equal(got.alpha[m], clean.alpha[m])
         assert same == (modality != "video"), modality
+
+
+def test_outputs_do_not_depend_on_what_the_store_already_holds():
+    """A warm-up of the clean outputs (as before a fork) or clean outputs copied back from a worker
+    change the work done, never a value."""
+    from evids.experiments.store import ModalityKey, OutputsKey
+
+    cold = _context()
+    noisy_cold = cold.outputs("standard", 5)
+    warm = _context()
+    warm.outputs("clean", 0)
+    _assert_equal(warm.outputs("standard", 5), noisy_cold)
+    copied = _context()
+    copied.store.put_clean(warm.outputs("clean", 0), "test", 0, [5, 6])
+    _assert_equal(copied.outputs("standard", 5), noisy_cold)
+    assert OutputsKey("clean", 6, "test", 0) in copied.store.outputs                  # every seed's key
+    rf = ModalityKey("rf", 0, "test", 0, ())
+    assert rf not in copied.store.modality           # reused from the copied clean outputs, not re-encoded
+    assert rf in cold.store.modality                 # encoded per modality when nothing was held
+    cold.drop_inputs()
+    assert not cold.store.inputs and cold.store.outputs
