@@ -129,7 +129,7 @@ def worker(config: str) -> None:
     from simulator.physics.timeline import build_timeline
 
     t0 = time.perf_counter()
-    import simulator.sensors.camera as camera_mod                       # noqa: F401  (import + Planck table)
+    import simulator.sensors.camera as camera_mod  # noqa: F401  (import + Planck table)
     from simulator.physics import thermal
     thermal.band_radiance(300.0)
     import_s = time.perf_counter() - t0
