@@ -95,7 +95,7 @@ def main() -> None:
     frames = renderer.iter_frames()
     for _ in range(warm):  # the first batch compiles the kernels
         i, fb = next(frames)
-        camera.record(i, fb.rgb_linear, fb.thermal_radiance, fb.thermal_kelvin)
+        camera.record_buffers(i, fb)
     start = time.perf_counter()
     a = start
     for i, fb in frames:
@@ -103,7 +103,7 @@ def main() -> None:
         coverage_labels(timeline, i, "rgb", fb.coverage["rgb"], rgb_cam.width_px, rgb_cam.height_px)
         coverage_labels(timeline, i, "thermal", fb.coverage["thermal"], th_cam.width_px, th_cam.height_px, netd)
         c = time.perf_counter()
-        camera.record(i, fb.rgb_linear, fb.thermal_radiance, fb.thermal_kelvin)
+        camera.record_buffers(i, fb)
         d = time.perf_counter()
         stages["render (rgb + thermal + coverage)"] += b - a
         stages["labels"] += c - b
