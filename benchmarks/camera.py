@@ -42,6 +42,7 @@ STAGES = [
     ("RGB camcorder AE + tone", "agc", "CamcorderExposure.__call__"),
     ("thermal optics + lag", "camera", "ThermalSensor.detector_radiance"),
     ("thermal brightness temperature", "thermal", "brightness_temperature"),
+    ("thermal brightness temperature", "thermal", "brightness_temperature_f32"),
     ("thermal FPN + NETD noise + counts (rest)", "camera", "ThermalSensor.record"),
     ("thermal histogram AGC", "camera", "equalise_counts"),
     ("thermal min/max or percentile AGC", "camera", "agc"),
@@ -238,7 +239,7 @@ def _report(config: str, args, ours: Worker, ref: Worker | None, per_turn: list[
     print(f"  import + Planck table: ours {ours.hello['import_s']:.2f} s" +
           (f", reference {ref.hello['import_s']:.2f} s" if ref else ""))
     print(f"  {'stage':44s} {'ours ms':>9s} {'ref ms':>9s} {'ref/ours':>9s}")
-    names = [s[0] for s in STAGES]
+    names = list(dict.fromkeys(s[0] for s in STAGES))
     for name in names:
         a = ours.stages.get(name, 0.0) / ours.frames * 1e3
         b = ref.stages.get(name, 0.0) / ref.frames * 1e3 if ref else float("nan")

@@ -280,8 +280,42 @@ def equalise_counts(counts: np.ndarray) -> np.ndarray:
     return np.rint(below * scale).astype(np.uint8)[flat].reshape(counts.shape)
 
 
-def standard_normal_f32(rng: np.random.Generator, out: np.ndarray) -> np.ndarray:
-    """Fill ``out`` (contiguous float32) with standard normal values from ``rng``'s bit stream.
+def agc_counts(counts: np.ndarray, kelvin_per_count: float, mode: str) -> np.ndarray:
+    """``agc(counts x kelvin_per_count, mode)`` computed once per occupied count level and looked up
+    per pixel (the percentiles from the levels' histogram instead of a sort). Equal to it (tested)."""
+    if mode == "histogram":
+        return equalise_counts(counts)
+    lo_count, hi_count = int(counts.min()), int(counts.max())
+    levels = np.arange(lo_count, hi_count + 1, dtype=np.uint16)
+    shown = np.multiply(levels, np.float32(kelvin_per_count), dtype=np.float32)   # the pixels' kelvin values
+    if mode == "minmax":
+        lut = agc_8bit(shown)[0]
+    else:
+        per_level = np.bincount((counts.ravel() - np.uint16(lo_count)), minlength=levels.size)
+        lo, hi = map(np.float64, _percentiles_of_levels(shown, per_level, (AGC_PERCENTILE, 100 - AGC_PERCENTILE)))
+        mid, span = 0.5 * (lo + hi), max(hi - lo, 0.5)                # float64, as np.percentile's are
+        lut = np.clip(np.rint((shown - (mid - span / 2)) / span * 255.0), 0, 255).astype(np.uint8)
+    return lut[counts - np.uint16(lo_count)]
+
+
+def _percentiles_of_levels(values: np.ndarray, per_level: np.ndarray, q: tuple[float, ...]) -> list[float]:
+    """np.percentile (method 'linear') of the pixels, from the sorted distinct values and their counts."""
+    cum = np.cumsum(per_level)
+    n = int(cum[-1])
+    out = []
+    for qi in q:
+        rank = qi / 100.0 * (n - 1)
+        below = int(np.floor(rank))
+        a = float(values[np.searchsorted(cum, below, side="right")])
+        b = float(values[np.searchsorted(cum, min(below + 1, n - 1), side="right")])
+        t = rank - below                                             # numpy's _lerp, in float64
+        out.append(b - (b - a) * (1 - t) if t >= 0.5 else a + (b - a) * t)
+    return out
+
+
+def standard_normal_f32(rng: np.random.Generator, out: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """Fill ``out`` (contiguous float32) with normal values of mean 0 and standard deviation ``scale``
+    (applied to the Box-Muller radius, so it costs no pass of its own) from ``rng``'s bit stream.
 
     Box-Muller in float32 on 24-bit uniforms: ceil(n/2) 64-bit raw draws of the generator, read as
     2 ceil(n/2) 32-bit words; u = (top 24 bits + 0.5) / 2^24 in (0, 1), u1 from the first half of
@@ -303,7 +337,7 @@ def standard_normal_f32(rng: np.random.Generator, out: np.ndarray) -> np.ndarray
     u *= np.float32(2.0 ** -24)
     u1, u2 = u[:half], u[half:]
     radius = np.log(u1)
-    radius *= np.float32(-2.0)
+    radius *= np.float32(-2.0 * scale * scale)
     np.sqrt(radius, out=radius)
     u2 *= np.float32(2.0 * np.pi)
     first, second = flat[:half], flat[half:]
@@ -371,7 +405,8 @@ class ThermalSensor:
         self.column_gain = (p.fpn_column_gain * rng.standard_normal(p.width_px)).astype(np.float64)
         self.column_offset_k = (p.fpn_column_offset_k * rng.standard_normal(p.width_px)).astype(np.float64)
         self._gain_row = (1.0 + self.column_gain[None, :]).astype(np.float32)
-        self._offset_row = (self.nuc_reference_k + self.column_offset_k[None, :]).astype(np.float32)
+        self._fpn_add_row = (self.nuc_reference_k * -self.column_gain[None, :]
+                             + self.column_offset_k[None, :]).astype(np.float32)
         self._scratch = Scratch()
         self._plateau = PlateauAgc(p.kelvin_per_count, p.agc_bin_k, p.agc_plateau_fraction, p.agc_linear_fraction,
                                    p.agc_tail_fraction, p.agc_min_span_k, p.agc_damping, p.agc_base_sigma_px,
@@ -393,23 +428,16 @@ class ThermalSensor:
         """Radiance -> (recorded kelvin float32, counts uint16, AGC uint8)."""
         p = self.params
         kelvin = radiometry.brightness_temperature_f32(self.detector_radiance(frame, radiance))
-        ref = np.float32(self.nuc_reference_k)
-        kelvin -= ref
-        kelvin *= self._gain_row
-        kelvin += self._offset_row
+        kelvin *= self._gain_row                      # (T - ref) gain + ref + offset
+        kelvin += self._fpn_add_row
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["thermal"], NOISE_STREAM, frame)
-        noise = standard_normal_f32(rng, self._scratch("noise", kelvin.shape))
-        noise *= np.float32(p.netd_k)
-        kelvin += noise
+        kelvin += standard_normal_f32(rng, self._scratch("noise", kelvin.shape), scale=p.netd_k)
         level = np.divide(kelvin, p.kelvin_per_count, out=self._scratch("level", kelvin.shape))
         np.rint(level, out=level)
         counts = np.clip(level, 0, 2 ** p.adc_bits - 1, out=level).astype(np.uint16)
-        if p.agc == "histogram":                      # = agc(counts x kelvin_per_count, 'histogram')
-            return kelvin, counts, equalise_counts(counts)
         if self._plateau is not None:                 # stateful: the transfer is damped over frames
             return kelvin, counts, self._plateau(counts)
-        shown = np.multiply(counts, np.float32(p.kelvin_per_count), out=level, dtype=np.float32)
-        return kelvin, counts, agc(shown, p.agc)
+        return kelvin, counts, agc_counts(counts, p.kelvin_per_count, p.agc)   # = agc(counts x kelvin_per_count)
 
     def metadata(self) -> dict:
         p = self.params

@@ -402,3 +402,15 @@ def test_shot_noise_is_exact_poisson_only_on_the_dark_pixels():
     assert np.array_equal(pure, np.rint(pure)) and not np.array_equal(dark, np.rint(dark))
     again = cam.shot_noise(lam, np.random.default_rng(2), read_noise_e=3.0)
     assert again.tobytes() == out.tobytes()
+
+
+@pytest.mark.parametrize("mode", ["minmax", "percentile", "histogram"])
+@pytest.mark.parametrize("seed", range(12))
+def test_agc_counts_equals_agc_of_the_shown_temperatures(mode, seed):
+    rng = np.random.default_rng(seed)
+    h, w = rng.integers(1, 80, 2)
+    kelvin_per_count = (0.01, 0.04, 0.001)[seed % 3]
+    kelvin = rng.normal(280, rng.uniform(0.01, 10), (h, w))
+    counts = np.clip(np.rint(kelvin / kelvin_per_count), 0, 65535).astype(np.uint16)
+    shown = np.multiply(counts, np.float32(kelvin_per_count), dtype=np.float32)
+    assert np.array_equal(cam.agc_counts(counts, kelvin_per_count, mode), cam.agc(shown, mode))
