@@ -46,6 +46,7 @@ STAGES = [
     ("thermal FPN + NETD noise + counts (rest)", "camera", "ThermalSensor.record"),
     ("thermal histogram AGC", "camera", "equalise_counts"),
     ("thermal min/max or percentile AGC", "camera", "agc"),
+    ("thermal min/max or percentile AGC", "camera", "agc_counts"),
     ("thermal plateau AGC", "agc", "PlateauAgc.__call__"),
     ("H.264 recording (both views)", "recording", "H264Stream.__call__"),
     ("camera model (rest)", "camera", "CameraModel.record"),
