@@ -126,7 +126,7 @@ def _env_directions(width: int, height: int, to_world: np.ndarray) -> np.ndarray
     return local @ to_world.T
 
 
-SKY_CACHE_SIZE = 4
+SKY_CACHE_SIZE = 2          # bakes kept per process, ~25 MB each (+8 MB with the LWIR map): a clip and its twin
 
 
 @dataclass
