@@ -362,8 +362,8 @@ def shot_noise(electrons: np.ndarray, rng: np.random.Generator, read_noise_e: fl
     if out is None:
         out = np.empty(lam.shape, np.float32)
     z = standard_normal_f32(rng, out)
-    dark = lam < np.float32(POISSON_EXACT_BELOW_E)
-    dark_z = z[dark] if dark.any() else None
+    dark = lam < np.float32(POISSON_EXACT_BELOW_E) if float(lam.min()) < POISSON_EXACT_BELOW_E else None
+    dark_z = z[dark] if dark is not None else None
     sigma = np.add(lam, np.float32(read_noise_e ** 2), out=work)
     z *= np.sqrt(sigma, out=sigma)
     z += lam
