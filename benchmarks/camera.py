@@ -204,7 +204,7 @@ def extract(rev: str, into: Path) -> Path:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=40, help="timed frames per configuration and implementation")
-    parser.add_argument("--chunk", type=int, default=5, help="frames per turn before the other worker runs")
+    parser.add_argument("--chunk", type=int, default=2, help="frames per turn before the other worker runs")
     parser.add_argument("--reference", default=REFERENCE_REV, help="git revision to compare with ('none': skip)")
     parser.add_argument("--config", choices=[*CONFIGS, "both"], default="both")
     parser.add_argument("--worker", choices=list(CONFIGS), help=argparse.SUPPRESS)
