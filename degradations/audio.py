@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from degradations.base import Degradation
+from degradations.base import Degradation, fast_normal
 from degradations.errors import DegradationError
 from degradations.registry import register
 
@@ -29,8 +29,10 @@ def _sample_rate(meta: dict, name: str) -> float:
 
 
 def coloured_noise(rng: np.random.Generator, n: int, beta: float) -> np.ndarray:
-    """Unit-RMS noise with power spectrum ~ 1/f^beta (0 white, 1 pink, 2 brown), float32."""
-    w = rng.standard_normal(n).astype(np.float32)
+    """Unit-RMS noise with power spectrum ~ 1/f^beta (0 white, 1 pink, 2 brown), float32. The
+    Gaussian draws come from ``fast_normal`` (the package's 16-bit inverse-CDF table: independent
+    values, 65536 levels, tails at 4.33 sigma; ~20x cheaper here than a float64 draw and cast)."""
+    w = fast_normal(rng, (n,))                                       # a fresh array (take copies)
     if beta != 0.0 and n > 2:
         spec = np.fft.rfft(w)
         f = np.arange(spec.size, dtype=np.float64)
@@ -38,21 +40,30 @@ def coloured_noise(rng: np.random.Generator, n: int, beta: float) -> np.ndarray:
         spec *= f ** (-beta / 2.0)
         w = np.fft.irfft(spec, n).astype(np.float32)
         w -= w.mean()
-    rms = float(np.sqrt(np.mean(w.astype(np.float64) ** 2)))
-    return w / np.float32(rms) if rms > 0 else w
+    rms = _rms(w)
+    if rms > 0:
+        w /= np.float32(rms)
+    return w
+
+
+def _rms(x: np.ndarray) -> float:
+    """RMS of a real array, accumulated in float64."""
+    return float(np.sqrt(np.einsum("i,i->", x, x, dtype=np.float64) / x.size)) if x.size else 0.0
 
 
 def signal_rms(x: np.ndarray, meta: dict) -> float:
     """RMS reference for SNR: meta['signal_rms'] if given, else the RMS of the whole item."""
     if meta.get("signal_rms") is not None:
         return float(meta["signal_rms"])
-    return float(np.sqrt(np.mean(x.astype(np.float64) ** 2)))
+    return _rms(x.ravel())
 
 
 def add_at_snr(x: np.ndarray, unit_noise: np.ndarray, snr_db: float, ref_rms: float) -> np.ndarray:
     """x + noise scaled so that ref_rms / rms(noise) = 10^(snr_db/20) exactly."""
     sigma = ref_rms / 10.0 ** (snr_db / 20.0)
-    return (x + np.float32(sigma) * unit_noise).astype(np.float32)
+    out = np.multiply(unit_noise, np.float32(sigma), dtype=np.float32)
+    out += x
+    return out
 
 
 class _AudioNoise(Degradation):

@@ -50,13 +50,15 @@ def _to_numpy(x: Any):
     raise DegradationError(f"input must be a numpy array or torch tensor, got {type(x).__name__}")
 
 
-def run_one(deg: Degradation, x: np.ndarray, rng: np.random.Generator, meta: dict | None):
-    """Sample params, apply, update meta and measure for one item (numpy)."""
+def run_one(deg: Degradation, x: np.ndarray, rng: np.random.Generator, meta: dict | None, measure: bool = True):
+    """Sample params, apply, update meta and (with ``measure``) measure for one item (numpy). The
+    measurement (e.g. the realised SNR) only goes into the info, so callers that drop it skip it."""
     meta = dict(meta or {})
     params = deg.sample_params(rng, meta)
     y = deg.apply(x, params, meta)
     info: dict[str, Any] = {"name": deg.name, "params": params, "meta": deg.update_meta(params, meta, tuple(x.shape))}
-    info.update(deg.measure(x, y, params, meta))
+    if measure:
+        info.update(deg.measure(x, y, params, meta))
     return y, info
 
 
@@ -77,7 +79,8 @@ def apply(name: str, x: Any, *, seed: int, severity: float | None = None, meta: 
     arr, restore = _to_numpy(x)
     ndims = deg.item_ndims()
     if arr.ndim in ndims:
-        y, info = run_one(deg, arr, make_rng(seed, name, 0), meta if isinstance(meta, dict) or meta is None else None)
+        y, info = run_one(deg, arr, make_rng(seed, name, 0), meta if isinstance(meta, dict) or meta is None else None,
+                          measure=return_info)
         if isinstance(meta, list):
             raise DegradationError("meta: a list of per-item dicts needs a batched input")
         out = restore(y)
@@ -89,7 +92,7 @@ def apply(name: str, x: Any, *, seed: int, severity: float | None = None, meta: 
         ys, infos = [], []
         for i in range(n):
             m = meta[i] if isinstance(meta, list) else meta
-            y, info = run_one(deg, arr[i], make_rng(seed, name, i), m)
+            y, info = run_one(deg, arr[i], make_rng(seed, name, i), m, measure=return_info)
             ys.append(y)
             infos.append(info)
         out = restore(np.stack(ys))

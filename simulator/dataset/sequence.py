@@ -180,7 +180,7 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
             for i, buffers in renderer.iter_frames():
                 t0 = times.add("render (rgb + thermal + coverage)", t0)
                 # the camera model keeps state (bolometer lag): it runs here, in frame order
-                recorded = camera.record(i, buffers.rgb_linear, buffers.thermal_radiance, buffers.thermal_kelvin)
+                recorded = camera.record_buffers(i, buffers)   # the ideal kelvin only for the ideal sensor
                 clipped_px += int(np.count_nonzero(np.asarray(recorded.thermal_counts) >= counts_max))
                 t0 = times.add("camera model", t0)
                 frames.append({

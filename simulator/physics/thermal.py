@@ -7,6 +7,7 @@ Pure numpy + colour-science; no renderer import. Radiances are in W sr^-1 m^-2 (
 from __future__ import annotations
 
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -18,6 +19,9 @@ BAND_HIGH_M = 14e-6
 _TABLE_T_MIN_K = 100.0
 _TABLE_T_MAX_K = 1500.0
 _TABLE_STEP_K = 0.05
+# the table below, precomputed (simulator/physics/make_planck_table.py); equal to _planck_band's (tested)
+PLANCK_TABLE_PATH = Path(__file__).resolve().parent / "data" / "planck_lwir_8_14um.npy"
+BT_GRID_POINTS = 4096       # brightness_temperature_f32: interpolation nodes over each frame's radiance range
 
 
 def _planck_band(temperatures_k: np.ndarray, n_wavelengths: int = 601) -> np.ndarray:
@@ -33,10 +37,30 @@ def _planck_band(temperatures_k: np.ndarray, n_wavelengths: int = 601) -> np.nda
     return out
 
 
+def table_temperatures() -> np.ndarray:
+    """The Planck table's temperature grid (K): 100-1500 K in 0.05 K steps."""
+    return np.arange(_TABLE_T_MIN_K, _TABLE_T_MAX_K + _TABLE_STEP_K / 2, _TABLE_STEP_K)
+
+
+def compute_table() -> tuple[np.ndarray, np.ndarray]:
+    """(temperatures, band radiances) computed from Planck's law (~3-5 s; ``_table`` loads it)."""
+    temps = table_temperatures()
+    return temps, _planck_band(temps)
+
+
 @lru_cache(maxsize=1)
 def _table() -> tuple[np.ndarray, np.ndarray]:
-    temps = np.arange(_TABLE_T_MIN_K, _TABLE_T_MAX_K + _TABLE_STEP_K / 2, _TABLE_STEP_K)
-    return temps, _planck_band(temps)
+    """The shipped table (PLANCK_TABLE_PATH, ~1 ms to load), or computed if it is missing or does
+    not fit the grid (then ~3-5 s per process)."""
+    temps = table_temperatures()
+    try:
+        radiances = np.load(PLANCK_TABLE_PATH, allow_pickle=False)
+    except OSError:
+        return compute_table()
+    if radiances.shape != temps.shape or radiances.dtype != np.float64:
+        return compute_table()
+    radiances.setflags(write=False)
+    return temps, radiances
 
 
 def band_radiance(temperature_k: np.ndarray | float) -> np.ndarray:
@@ -52,6 +76,37 @@ def brightness_temperature(radiance: np.ndarray | float) -> np.ndarray:
     """Inverse of band_radiance: the blackbody temperature (K) with this band radiance."""
     temps, radiances = _table()
     return np.interp(np.asarray(radiance, dtype=np.float64), radiances, temps)
+
+
+def brightness_temperature_f32(radiance: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``brightness_temperature`` of a float32 frame, in float32, in a time independent of the
+    pixels' order: the table is first interpolated onto BT_GRID_POINTS radiances equally spaced in
+    log radiance over the frame's [min, max], then every pixel is interpolated linearly on that grid
+    by index (no binary search: ``np.interp``'s search costs 5-10x more on a noisy frame than on a
+    smooth one). Differs from ``brightness_temperature`` by < 1e-4 K over a 240-330 K frame and
+    < 3e-3 K over a 100-1500 K one (tested), against a 0.05 K table step and ~0.05 K sensor noise.
+    Radiances outside the table are clamped to it, as ``np.interp`` does."""
+    x = np.asarray(radiance, dtype=np.float32)
+    temps, radiances = _table()
+    lo = min(max(float(x.min()), float(radiances[0])), float(radiances[-1]))
+    hi = max(min(float(x.max()), float(radiances[-1])), lo)
+    out = np.clip(x, np.float32(lo), np.float32(hi), out=out)
+    log_lo, log_hi = float(np.log(np.float32(lo))), float(np.log(np.float32(hi)))
+    if not log_hi > log_lo:                                          # flat (or out-of-range) frame
+        out[...] = np.float32(np.interp(lo, radiances, temps))
+        return out
+    grid = np.exp(np.linspace(log_lo, log_hi, BT_GRID_POINTS))
+    nodes = np.interp(grid, radiances, temps).astype(np.float32)
+    slopes = np.append(np.diff(nodes), np.float32(0.0))              # per grid cell; the last: x == hi
+    np.log(out, out=out)
+    out -= np.float32(log_lo)
+    out *= np.float32((BT_GRID_POINTS - 1) / (log_hi - log_lo))
+    np.clip(out, np.float32(0.0), np.float32(BT_GRID_POINTS - 1), out=out)
+    index = out.astype(np.intp)
+    out -= index                                                     # fraction within the cell
+    out *= slopes.take(index)
+    out += nodes.take(index)
+    return out
 
 
 def band_radiance_derivative(temperature_k: float) -> float:

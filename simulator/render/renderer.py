@@ -126,14 +126,76 @@ def _env_directions(width: int, height: int, to_world: np.ndarray) -> np.ndarray
     return local @ to_world.T
 
 
+SKY_CACHE_SIZE = 2          # bakes kept per process, ~25 MB each (+8 MB with the LWIR map): a clip and its twin
+
+
+@dataclass
+class _SkyBake:
+    """What SkyMaps computes from the sky parameters (and the cloud seed): shared between sequences."""
+
+    sun_direction: np.ndarray
+    sun_irradiance: np.ndarray
+    sun_elevation_deg: float
+    sky_irradiance: np.ndarray
+    rgb: np.ndarray
+    airlight_rgb: np.ndarray
+    thermal: np.ndarray | None = None        # the LWIR map, filled when a thermal camera first needs it
+    thermal_sky: ThermalSky | None = None    # the LWIR sky model, made on first use
+
+
+_SKY_BAKES: dict[tuple, _SkyBake] = {}      # insertion-ordered: the oldest is dropped first
+
+
+def _sky_key(mi, timeline: Timeline) -> tuple:
+    """Everything a sky bake depends on: variant, sky and atmosphere parameters, and the seed only
+    when clouds (the one seeded part) are present."""
+    scenario = timeline.scenario
+    clouds = scenario.sky.clouds is not None and scenario.sky.clouds.coverage > 0
+    return (mi.variant(), scenario.sky.model_dump_json(), scenario.atmosphere.model_dump_json(),
+            int(timeline.seed) if clouds else None)
+
+
 class SkyMaps:
-    """The sky as seen by each sensor, baked into environment maps once per sequence."""
+    """The sky as seen by each sensor, baked into environment maps; the bake is memoised by the sky
+    parameters (``_sky_key``, SKY_CACHE_SIZE bakes per process), so a clip's counterfactual twin or
+    any clip under the same sky reuses it. The maps are read-only."""
 
     def __init__(self, mi, timeline: Timeline):
+        scenario = timeline.scenario
+        self.to_world = mi.ScalarTransform4f().rotate([1, 0, 0], 90)
+        self._scenario, self._seed = scenario, timeline.seed
+        key = _sky_key(mi, timeline)
+        bake = _SKY_BAKES.get(key)
+        if bake is None:
+            bake = self._bake(mi, timeline)
+            _SKY_BAKES[key] = bake
+            while len(_SKY_BAKES) > SKY_CACHE_SIZE:
+                _SKY_BAKES.pop(next(iter(_SKY_BAKES)))
+        else:
+            # the two helper emitters are created (and freed) on a hit too: the scene's own emitters
+            # then get the same Dr.Jit registry ids as after a bake, so compiled kernels are reused
+            sunsky = self._sunsky_dict(scenario)
+            helpers = [mi.load_dict({**sunsky, "sun_scale": 0.0}), mi.load_dict({**sunsky, "sky_scale": 0.0})]
+            del helpers
+        self._bake_state = bake
+        self.sun_direction = bake.sun_direction
+        self.sun_irradiance = bake.sun_irradiance
+        self.sun_elevation_deg = bake.sun_elevation_deg
+        self.sky_irradiance = bake.sky_irradiance
+        self.rgb = bake.rgb
+        self.airlight_rgb = bake.airlight_rgb
+
+    @staticmethod
+    def _sunsky_dict(scenario) -> dict:
+        sun_el, sun_az = sun_elevation_azimuth_deg(scenario.sky.sun)
+        direction = direction_from_elevation_azimuth(sun_el, sun_az)
+        return {"type": "sunsky", "sun_direction": direction.tolist(), "turbidity": scenario.sky.turbidity,
+                "albedo": scenario.sky.ground_albedo}
+
+    def _bake(self, mi, timeline: Timeline) -> _SkyBake:
         import drjit as dr
 
         scenario = timeline.scenario
-        self.to_world = mi.ScalarTransform4f().rotate([1, 0, 0], 90)
         rot = np.ascontiguousarray(np.array(self.to_world.matrix, dtype=np.float64)[:3, :3])
         dirs = _env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())  # same for every sequence
         # rows [0, H/2) are exactly the texels above the horizon: the sky is evaluated there only,
@@ -142,12 +204,11 @@ class SkyMaps:
         top = dirs[:half]
         up = top[..., 2]
         sun_el, sun_az = sun_elevation_azimuth_deg(scenario.sky.sun)
-        self.sun_direction = direction_from_elevation_azimuth(sun_el, sun_az)
-        sunsky = {"type": "sunsky", "sun_direction": self.sun_direction.tolist(), "turbidity": scenario.sky.turbidity,
-                  "albedo": scenario.sky.ground_albedo}
+        sun_direction = direction_from_elevation_azimuth(sun_el, sun_az)
+        sunsky = self._sunsky_dict(scenario)
         sky_only = mi.load_dict({**sunsky, "sun_scale": 0.0})
         wi = _neg_directions_f32(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())
-        sun_wi = -self.sun_direction
+        sun_wi = -sun_direction
         if is_scalar(mi):  # one direction per call (simulator.render.scalar)
             rgb = scalar.eval_emitter(mi, sky_only, wi).reshape(half, ENV_WIDTH, 3)
             sun_only = mi.load_dict({**sunsky, "sky_scale": 0.0})
@@ -165,40 +226,47 @@ class SkyMaps:
             si1.wi = mi.Vector3f(*[float(c) for c in sun_wi])
             sun_value = np.array(sun_only.eval(si1)).ravel() * SUN_SOLID_ANGLE_SR
             del si, si1
-        self.sun_irradiance = sun_value if sun_el > 0 else np.zeros(3)
-        self.sun_elevation_deg = float(sun_el)
+        sun_irradiance = sun_value if sun_el > 0 else np.zeros(3)
         del sky_only, sun_only
         # texel solid angle depends on the row only: (2 pi / W)(pi / H) sin(theta_row)
         row_sa = (2 * np.pi / ENV_WIDTH) * (np.pi / ENV_HEIGHT) * np.sin((np.arange(half) + 0.5) / ENV_HEIGHT * np.pi)
         weight = (up * row_sa[:, None]).ravel()
         sky_irradiance = weight @ rgb.reshape(-1, 3).astype(np.float64)
-        self.sky_irradiance = sky_irradiance
-        sun_cos = max(self.sun_direction[2], 0.0)
-        ground = scenario.sky.ground_albedo * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi
+        sun_cos = max(sun_direction[2], 0.0)
+        ground = scenario.sky.ground_albedo * (sky_irradiance + sun_irradiance * sun_cos) / np.pi
         clouds = scenario.sky.clouds
         if clouds is not None and clouds.coverage > 0:
             cover = CloudField(clouds, timeline.seed).coverage(top).astype(np.float32)[..., None]
-            cloud_rgb = (0.75 * (sky_irradiance + self.sun_irradiance * sun_cos) / np.pi).astype(np.float32)
+            cloud_rgb = (0.75 * (sky_irradiance + sun_irradiance * sun_cos) / np.pi).astype(np.float32)
             rgb += cover * (cloud_rgb - rgb)  # (1 - cover) rgb + cover cloud_rgb
-            self.sun_irradiance = self.sun_irradiance * (1 - 0.8 * clouds.coverage)
+            sun_irradiance = sun_irradiance * (1 - 0.8 * clouds.coverage)
         full = np.empty((ENV_HEIGHT, ENV_WIDTH, 3), np.float32)
         full[:half] = rgb
         full[half:] = ground
-        self.rgb = full
         horizon = (up > 0.01) & (up < 0.06)
-        self.airlight_rgb = rgb[horizon].astype(np.float64).mean(axis=0)
-        self._scenario, self._seed = scenario, timeline.seed
+        airlight = rgb[horizon].astype(np.float64).mean(axis=0)
+        for a in (full, sun_direction, sun_irradiance, sky_irradiance, airlight):
+            a.flags.writeable = False
+        return _SkyBake(sun_direction, sun_irradiance, float(sun_el), sky_irradiance, full, airlight)
 
-    @cached_property
+    @property
     def thermal_sky(self) -> ThermalSky:
-        return ThermalSky(self._scenario.sky, self._scenario.atmosphere, self._seed)
+        """The LWIR sky model (kept with the bake: it depends on the same parameters)."""
+        bake = self._bake_state
+        if bake.thermal_sky is None:
+            bake.thermal_sky = ThermalSky(self._scenario.sky, self._scenario.atmosphere, self._seed)
+        return bake.thermal_sky
 
-    @cached_property
+    @property
     def thermal(self) -> np.ndarray:
-        """LWIR band radiance map (computed only when a thermal camera renders)."""
-        rot = np.ascontiguousarray(np.array(self.to_world.matrix, dtype=np.float64)[:3, :3])
-        directions = _env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())
-        return self.thermal_sky.radiance(directions).astype(np.float32)
+        """LWIR band radiance map (computed only when a thermal camera renders; kept with the bake)."""
+        bake = self._bake_state
+        if bake.thermal is None:
+            rot = np.ascontiguousarray(np.array(self.to_world.matrix, dtype=np.float64)[:3, :3])
+            directions = _env_directions_cached(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())
+            bake.thermal = self.thermal_sky.radiance(directions).astype(np.float32)
+            bake.thermal.flags.writeable = False
+        return bake.thermal
 
     @cached_property
     def reflected_lwir(self) -> float:
@@ -308,7 +376,7 @@ class _View:
         mi, owner = self.mi, self.owner
         if self.which == "rgb":
             scene: dict = {"type": "scene"}
-            env = owner.sky.rgb
+            env = owner.sky.rgb.copy()            # the bake is shared and read-only; Bitmap wants a writable array
             if np.any(owner.sky.sun_irradiance > 0):
                 scene["sun"] = {"type": "directional", "direction": (-owner.sky.sun_direction).tolist(),
                                 "irradiance": {"type": "rgb", "value": owner.sky.sun_irradiance.tolist()}}

@@ -7,11 +7,13 @@ AGC_MIN_SPAN_K = 2.0
 
 
 def rgb_to_srgb8(rgb_linear: np.ndarray) -> np.ndarray:
-    """Clip exposed linear sRGB to [0, 1], apply the sRGB transfer function (colour-science), 8 bit."""
-    import colour
+    """Clip exposed linear sRGB to [0, 1], apply the sRGB transfer function, 8 bit.
 
-    encoded = colour.cctf_encoding(np.clip(rgb_linear, 0.0, 1.0), function="sRGB")
-    return np.rint(np.asarray(encoded) * 255.0).astype(np.uint8)
+    The IEC 61966-2-1 curve computed as colour-science's ``cctf_encoding(x, 'sRGB')`` does it (float64,
+    the same operations), without its per-call overhead (~5 ms on a 112 px frame); equal to it (tested)."""
+    linear = np.clip(rgb_linear, 0.0, 1.0).astype(np.float64)
+    encoded = np.where(linear <= 0.0031308, linear * 12.92, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+    return np.rint(encoded * 255.0).astype(np.uint8)
 
 
 def kelvin_to_counts(kelvin: np.ndarray, kelvin_per_count: float) -> np.ndarray:

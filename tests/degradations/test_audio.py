@@ -81,3 +81,25 @@ def test_gain_clip_and_dropout_fraction():
     assert np.max(np.abs(y)) == pytest.approx(1.0) and np.mean(np.abs(y) == 1.0) > 0.3
     y = degradations.apply("audio.dropout", x, seed=0, drop_fraction=0.3, meta={"sample_rate_hz": SR})
     assert np.mean(y == 0) == pytest.approx(0.3, abs=0.03)
+
+
+def test_white_noise_is_gaussian_white_and_exactly_at_the_snr():
+    from scipy import stats
+
+    x = np.zeros(44100, np.float32)
+    x[::2] = 1.0                                                   # RMS 1/sqrt(2)
+    y, info = degradations.apply("audio.white_noise", x, seed=3, snr_db=6.0, return_info=True)
+    n = (y - x).astype(np.float64)
+    assert info["realised_snr_db"] == pytest.approx(6.0, abs=1e-4)
+    z = n / n.std()
+    assert stats.kstest(z, "norm").pvalue > 1e-3 and abs(stats.kurtosis(z)) < 0.1
+    assert abs(np.corrcoef(z[:-1], z[1:])[0, 1]) < 0.02             # white: no lag-1 correlation
+
+
+def test_mean_power_of_real_and_complex_items():
+    from degradations.base import _mean_power
+
+    a = np.array([1.0, -2.0, 3.0])
+    c = np.array([1 + 1j, 2 - 1j], np.complex64)
+    assert _mean_power(a) == pytest.approx(14 / 3) and _mean_power(c) == pytest.approx(3.5)
+    assert _mean_power(a.reshape(3, 1)[::2]) == pytest.approx(5.0)

@@ -39,3 +39,45 @@ def test_out_of_range_temperature_is_rejected():
 
 def test_visible_extinction_is_koschmieder():
     assert thermal.visible_extinction_per_m(3912.0) == pytest.approx(1e-3)
+
+
+def test_the_shipped_planck_table_equals_the_computed_one():
+    thermal._table.cache_clear()
+    temps, loaded = thermal._table()
+    assert thermal.PLANCK_TABLE_PATH.is_file() and not loaded.flags.writeable
+    ref_temps, computed = thermal.compute_table()
+    assert np.array_equal(temps, ref_temps) and np.array_equal(loaded, computed)
+
+
+def test_a_missing_or_misfit_planck_table_is_computed(tmp_path, monkeypatch):
+    for content in (None, np.zeros(7)):
+        path = tmp_path / "t.npy"
+        if content is not None:
+            np.save(path, content)
+        monkeypatch.setattr(thermal, "PLANCK_TABLE_PATH", path)
+        monkeypatch.setattr(thermal, "compute_table", lambda: ("computed", None))
+        thermal._table.cache_clear()
+        assert thermal._table()[0] == "computed"
+    thermal._table.cache_clear()
+
+
+@pytest.mark.parametrize("lo_k, hi_k, noise_k, tol_k", [(240.0, 330.0, 0.3, 1e-4), (100.0, 1500.0, 0.0, 3e-3)])
+def test_brightness_temperature_f32_matches_the_table_inversion(lo_k, hi_k, noise_k, tol_k):
+    rng = np.random.default_rng(3)
+    kelvin = rng.uniform(lo_k, hi_k, (97, 131)) + noise_k * rng.standard_normal((97, 131))
+    kelvin = np.clip(kelvin, 100.0, 1500.0)
+    kelvin[0, :3] = (lo_k, hi_k, 0.5 * (lo_k + hi_k))
+    radiance = thermal.band_radiance(kelvin).astype(np.float32)
+    fast = thermal.brightness_temperature_f32(radiance)
+    exact = thermal.brightness_temperature(radiance)
+    assert fast.dtype == np.float32 and fast.shape == radiance.shape
+    assert np.abs(fast - exact).max() < tol_k
+
+
+def test_brightness_temperature_f32_of_a_flat_frame_and_into_a_buffer():
+    radiance = np.full((5, 6), float(thermal.band_radiance(290.0)), np.float32)
+    out = np.empty((5, 6), np.float32)
+    assert thermal.brightness_temperature_f32(radiance, out=out) is out
+    assert np.allclose(out, thermal.brightness_temperature(radiance), atol=1e-4)
+    radiance[0, 0] = np.nextafter(radiance[0, 0], np.float32(np.inf))     # one ulp apart: still "flat"
+    assert np.allclose(thermal.brightness_temperature_f32(radiance), 290.0, atol=1e-3)

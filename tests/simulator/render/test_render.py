@@ -145,3 +145,24 @@ def test_antiuav_output_has_the_benchmark_field_semantics(tmp_path):
     assert len(exist) == len(rects) == len(frames)
     native = json.loads((written["native"] / "labels.json").read_text())
     assert [f["thermal"][0]["exist"] for f in native["frames"]] == data["exist"]
+
+
+def test_a_cached_sky_bake_renders_the_same_bytes_as_a_fresh_one(tmp_path):
+    from simulator.render import renderer as rr
+
+    scenario = shrink(load_scenario("bird_confuser"), 96, 80)   # has clouds: the bake depends on the seed
+    assert scenario.sky.clouds is not None and scenario.sky.clouds.coverage > 0
+    rr._SKY_BAKES.clear()
+    a = render_sequence(scenario, 5, tmp_path / "a", n_frames=2, progress=False)["native"]
+    assert len(rr._SKY_BAKES) == 1
+    bake = next(iter(rr._SKY_BAKES.values()))
+    assert bake.thermal is not None and not bake.rgb.flags.writeable
+    b = render_sequence(scenario, 5, tmp_path / "b", n_frames=2, progress=False)["native"]   # a hit
+    assert len(rr._SKY_BAKES) == 1 and next(iter(rr._SKY_BAKES.values())) is bake
+    assert _digest(a) == _digest(b)
+    render_sequence(scenario, 6, tmp_path / "c", n_frames=1, progress=False)      # other cloud seed: new bake
+    clear = scenario.model_copy(update={"sky": scenario.sky.model_copy(update={"clouds": None})})
+    from simulator.render.mitsuba_setup import load_mitsuba
+
+    keys = {rr._sky_key(load_mitsuba(), build_timeline(clear, seed, 1)) for seed in (5, 6)}
+    assert len(rr._SKY_BAKES) == 2 and len(keys) == 1                         # no clouds: the seed does not count

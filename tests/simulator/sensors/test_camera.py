@@ -361,3 +361,56 @@ def test_gaussian_blur_adds_its_variance_to_the_psf():
             and var_x == pytest.approx(1.0 + 1 / 12, rel=0.04))   # sigma^2 + binning (Sheppard)
     default = cam.psf_kernel(12.0, 1.0, 10.0, 0.0)
     assert np.array_equal(default, cam.psf_kernel(12.0, 1.0, 10.0, 0.0, 0.0))   # 0 = the former kernel
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 200_001])
+def test_standard_normal_f32_is_standard_normal_and_reproducible(n):
+    out = cam.standard_normal_f32(np.random.default_rng(11), np.empty(n, np.float32))
+    again = cam.standard_normal_f32(np.random.default_rng(11), np.empty(n, np.float32))
+    other = cam.standard_normal_f32(np.random.default_rng(12), np.empty(n, np.float32))
+    assert out.dtype == np.float32 and out.tobytes() == again.tobytes() and out.tobytes() != other.tobytes()
+    assert np.isfinite(out).all() and np.abs(out).max() < 5.9
+    if n > 1000:
+        from scipy import stats
+
+        assert abs(out.mean()) < 5 / np.sqrt(n) and out.std() == pytest.approx(1.0, abs=5 / np.sqrt(2 * n))
+        assert stats.kstest(out, "norm").pvalue > 1e-3
+        assert np.mean(np.abs(out) > 3) == pytest.approx(0.0027, rel=0.15)
+        half = (n + 1) // 2                       # the cos and sin halves of the same pairs are independent
+        assert abs(np.corrcoef(out[:n - half], out[half:])[0, 1]) < 5 / np.sqrt(n)
+
+
+def test_standard_normal_f32_keeps_the_generator_stream_and_needs_a_contiguous_buffer():
+    rng = np.random.default_rng(4)
+    cam.standard_normal_f32(rng, np.empty((3, 5), np.float32))      # 8 raw draws for 15 values
+    ref = np.random.default_rng(4)
+    ref.bit_generator.advance(8)
+    assert rng.random() == ref.random()
+    with pytest.raises(ValueError, match="contiguous float32"):
+        cam.standard_normal_f32(rng, np.empty((4, 6), np.float32)[:, ::2])
+    with pytest.raises(ValueError, match="contiguous float32"):
+        cam.standard_normal_f32(rng, np.empty(4, np.float64))
+
+
+def test_shot_noise_is_exact_poisson_only_on_the_dark_pixels():
+    lam = np.where(np.arange(40_000).reshape(200, 200) % 2 == 0, 20.0, 5e4).astype(np.float32)
+    out = cam.shot_noise(lam, np.random.default_rng(2), read_noise_e=3.0)
+    dark, bright = out[lam < 1000], out[lam >= 1000]
+    assert dark.mean() == pytest.approx(20.0, abs=0.2) and dark.var() == pytest.approx(29.0, rel=0.06)
+    assert bright.mean() == pytest.approx(5e4, rel=1e-3) and bright.var() == pytest.approx(5e4 + 9.0, rel=0.05)
+    pure = cam.shot_noise(lam, np.random.default_rng(2), read_noise_e=0.0)[lam < 1000]   # Poisson: integers
+    assert np.array_equal(pure, np.rint(pure)) and not np.array_equal(dark, np.rint(dark))
+    again = cam.shot_noise(lam, np.random.default_rng(2), read_noise_e=3.0)
+    assert again.tobytes() == out.tobytes()
+
+
+@pytest.mark.parametrize("mode", ["minmax", "percentile", "histogram"])
+@pytest.mark.parametrize("seed", range(12))
+def test_agc_counts_equals_agc_of_the_shown_temperatures(mode, seed):
+    rng = np.random.default_rng(seed)
+    h, w = rng.integers(1, 80, 2)
+    kelvin_per_count = (0.01, 0.04, 0.001)[seed % 3]
+    kelvin = rng.normal(280, rng.uniform(0.01, 10), (h, w))
+    counts = np.clip(np.rint(kelvin / kelvin_per_count), 0, 65535).astype(np.uint16)
+    shown = np.multiply(counts, np.float32(kelvin_per_count), dtype=np.float32)
+    assert np.array_equal(cam.agc_counts(counts, kelvin_per_count, mode), cam.agc(shown, mode))
