@@ -25,7 +25,12 @@ BT_GRID_POINTS = 4096       # brightness_temperature_f32: interpolation nodes ov
 
 
 def _planck_band(temperatures_k: np.ndarray, n_wavelengths: int = 601) -> np.ndarray:
+    print_options = np.get_printoptions()
     import colour
+
+    # colour-science 0.4.x sets numpy's legacy (1.13) print mode at import, which changes repr() of
+    # numpy floats and so the bytes of every CSV written later in the process: undo it
+    np.set_printoptions(**print_options)
 
     wavelengths_m = np.linspace(BAND_LOW_M, BAND_HIGH_M, n_wavelengths)
     temps = np.atleast_1d(np.asarray(temperatures_k, dtype=np.float64))

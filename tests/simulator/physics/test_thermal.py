@@ -81,3 +81,15 @@ def test_brightness_temperature_f32_of_a_flat_frame_and_into_a_buffer():
     assert np.allclose(out, thermal.brightness_temperature(radiance), atol=1e-4)
     radiance[0, 0] = np.nextafter(radiance[0, 0], np.float32(np.inf))     # one ulp apart: still "flat"
     assert np.allclose(thermal.brightness_temperature_f32(radiance), 290.0, atol=1e-3)
+
+
+def test_computing_the_planck_table_leaves_numpy_print_options_alone():
+    """colour-science sets numpy's legacy print mode at import (repr(np.float64(0.1)) becomes
+    '0.10000000000000001'), which changed CSV bytes depending on whether a run had computed the table."""
+    import subprocess
+    import sys
+
+    code = ("import numpy as np; from simulator.physics import thermal; thermal._planck_band(np.array([300.0]));"
+            "print(repr(float(np.float64(0.1))), np.get_printoptions()['legacy'], [np.float64(0.1)])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out[0] == "0.1" and out[1] == "False" and "0.10000000000000001" not in " ".join(out)
