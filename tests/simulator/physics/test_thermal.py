@@ -46,7 +46,10 @@ def test_the_shipped_planck_table_equals_the_computed_one():
     temps, loaded = thermal._table()
     assert thermal.PLANCK_TABLE_PATH.is_file() and not loaded.flags.writeable
     ref_temps, computed = thermal.compute_table()
-    assert np.array_equal(temps, ref_temps) and np.array_equal(loaded, computed)
+    assert np.array_equal(temps, ref_temps)
+    # equal to the last ulp or two: the lowest numpy allowed (1.24) rounds the band integral 1 ulp apart
+    # (5.6e-16 relative, measured); runs read the shipped table, so their bytes do not depend on it
+    np.testing.assert_allclose(loaded, computed, rtol=1e-14, atol=0)
 
 
 def test_a_missing_or_misfit_planck_table_is_computed(tmp_path, monkeypatch):
