@@ -66,3 +66,23 @@ def test_clipping_and_16_bit_quantisation():
 def test_bad_span_names_the_field():
     with pytest.raises(ValueError, match="agc_target_dbfs"):
         mic.RecorderConfig(agc_target_dbfs=(-10.0, -30.0))
+
+
+def test_codec_band_limit_by_hand_and_in_the_chain():
+    f = np.array([1000.0, 15_700.0, 15_850.0, 16_000.0, 19_000.0])
+    r = mic.codec_response_db(f, cutoff_hz=16_000.0, edge_hz=300.0, floor_db=-70.0)
+    assert r[0] == 0.0 and r[1] == pytest.approx(0.0, abs=1e-9)             # below the edge: untouched
+    floor = 10 ** (-70 / 20)
+    assert r[2] == pytest.approx(20 * np.log10(floor + (1 - floor) * 0.5), abs=1e-9)   # mid-edge: half amplitude
+    assert r[3] == pytest.approx(-70.0, abs=1e-9) and r[4] == pytest.approx(-70.0, abs=1e-9)
+    x = 0.02 * np.random.default_rng(1).standard_normal(FS)
+    on = mic.record(x, FS, seed=2, full_scale_pa=1.0, config=_flat(agc=False, codec_probability=1.0,
+                                                                   codec_cutoff_hz=(12_000.0, 12_000.0)))
+    off = mic.record(x, FS, seed=2, full_scale_pa=1.0, config=_flat(agc=False, codec_probability=0.0))
+    spec_on, spec_off = (np.abs(np.fft.rfft(y.astype(np.float64))) ** 2 for y in (on, off))
+    fr = np.fft.rfftfreq(FS, 1 / FS)
+    above, below = (fr > 13_000) & (fr < 20_000), (fr > 2_000) & (fr < 10_000)
+    assert 10 * np.log10(spec_on[above].sum() / spec_off[above].sum()) < -40     # cut (16-bit floor remains)
+    assert 10 * np.log10(spec_on[below].sum() / spec_off[below].sum()) == pytest.approx(0.0, abs=0.1)
+    with pytest.raises(ValueError, match="codec_cutoff_hz"):
+        mic.RecorderConfig(codec_cutoff_hz=(50.0, 60.0))
