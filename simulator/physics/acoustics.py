@@ -67,7 +67,7 @@ class RotorNoise:
 LEGACY_ROTOR_NOISE = RotorNoise()
 # ranges of draw_rotor_noise (uniform unless said): see docs/AUDIO_RF.md "Rotor noise (issue 24)"
 ROTOR_NOISE_RANGES = {
-    "harmonic_decay": (0.3, 1.2), "harmonic_top_hz": (3000.0, 10000.0), "broadband_offset_db": (6.0, 16.0),
+    "harmonic_decay": (0.3, 1.2), "harmonic_top_hz": (3000.0, 10000.0), "broadband_offset_db": (10.0, 20.0),
     "broadband_low_hz": (100.0, 400.0), "broadband_high_hz": (15000.0, 20000.0), "broadband_tilt_db": (-4.0, -1.5),
     "bpf_modulation": (0.1, 0.6), "imbalance": (0.02, 0.15), "motor_line": (0.02, 0.15),
     "pwm_hz": (8000.0, 12000.0, 16000.0), "pwm_level": (0.0, 0.08), "amplitude_fluctuation_db": (1.0, 4.0),
@@ -609,10 +609,10 @@ def airliner_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random
 HELICOPTER_DB_1M = 126.0          # overall unweighted level at 1 m of the sum of the parts below
 HELICOPTER_MAIN_RPM = (330.0, 420.0)   # governed main-rotor speed when no track gives it
 HELICOPTER_RANGES = {"main_blades": (2, 3, 3, 4, 4), "tail_ratio": (4.5, 6.5), "tail_blades": (2, 4),
-                     "thump_ms": (2.0, 6.0), "thump_db": (-10.0, -2.0), "slap_ms": (0.15, 0.6),
-                     "slap_db": (-14.0, -4.0), "swish_width": (0.08, 0.25), "swish_depth": (0.4, 1.3),
+                     "thump_ms": (2.0, 6.0), "thump_db": (-18.0, -2.0), "slap_ms": (0.15, 0.6),
+                     "slap_db": (-22.0, -4.0), "swish_width": (0.08, 0.25), "swish_depth": (0.1, 1.3),
                      "broadband_low_hz": (200.0, 400.0), "broadband_tilt_db": (-8.0, -6.0),
-                     "tip_noise_db": (-16.0, -6.0), "tail_db": (-20.0, -10.0),
+                     "tip_noise_db": (-22.0, -10.0), "tail_db": (-20.0, -10.0),
                      "turbine_tones": (1, 3), "turbine_hz": (6000.0, 12000.0), "turbine_db": (-30.0, -16.0),
                      "turbine_noise_db": (-26.0, -14.0)}
 
@@ -636,7 +636,7 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
     ``main_rpm`` (scalar or per microphone sample) and ``main_blades`` come from the target's rotor
     (scene schema) when given, else they are drawn (``HELICOPTER_MAIN_RPM``, 2-4 blades). Parts, each
     scaled re the rotor broadband: rotor broadband from 200-400 Hz to 16 kHz (tilt -8..-6 dB/octave) and
-    blade-tip self-noise 2-16 kHz (-1 dB/octave, -16..-6 dB), both with an exponential 'swish'
+    blade-tip self-noise 2-16 kHz (-1 dB/octave, -22..-10 dB), both with an exponential 'swish'
     envelope at the BPF; thickness/loading thump (2-6 ms pulses at the BPF, per-pass
     jitter); blade slap (0.15-0.6 ms pulses); tail-rotor lines k x its BPF (k^-1); turbine: 1-3
     wandering compressor tones at 6-12 kHz and 1-16 kHz noise. The sum is scaled to HELICOPTER_DB_1M.

@@ -57,7 +57,7 @@ class RecorderConfig(BaseModel):
     agc_min_gain_db: float = Field(default=-20.0, le=0.0)
     input_gain_db: Span = Field(default=(-8.0, 4.0), description="gain before the AGC (or the fixed gain without it)")
     gate_probability: float = Field(default=0.5, ge=0.0, le=1.0, description="share of clips with a noise gate")
-    gate_threshold_dbfs: Span = (-50.0, -38.0)
+    gate_threshold_dbfs: Span = (-48.0, -36.0)
     gate_ratio: Span = (2.0, 4.0)
     gate_range_db: Span = (-30.0, -15.0)
     gate_release_s: Span = (0.05, 0.3)
