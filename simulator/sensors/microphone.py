@@ -54,7 +54,7 @@ class RecorderConfig(BaseModel):
     agc_release_s: Span = (0.5, 3.0)
     agc_attack_s: float = Field(default=0.05, gt=0.0)
     agc_max_gain_db: float = Field(default=3.0, ge=0.0)
-    agc_min_gain_db: float = Field(default=-20.0, le=0.0)
+    agc_min_gain_db: float = Field(default=-26.0, le=0.0)
     input_gain_db: Span = Field(default=(-8.0, 4.0), description="gain before the AGC (or the fixed gain without it)")
     gate_probability: float = Field(default=0.5, ge=0.0, le=1.0, description="share of clips with a noise gate")
     gate_threshold_dbfs: Span = (-48.0, -36.0)
