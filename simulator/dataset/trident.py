@@ -10,7 +10,8 @@ tree is written to a temporary sibling directory and renamed into place at the e
 MFCC: librosa, per 0.25 s segment (11 025 samples at 44.1 kHz) with n_fft = 1024 (23 ms),
 hop_length = 282 (= 11025 // 39), centred frames -> 1 + 11025 // 282 = 40 frames; 128 mel bands,
 40 coefficients; log-power floor at 80 dB below each segment's own maximum (segments are
-independent). The input is the WAV sample value (pressure / full_scale_pa).
+independent). The input is the WAV sample value: the recorded samples (``TridentConfig.recorder``,
+simulator.sensors.microphone), or pressure / full_scale_pa with the recorder disabled.
 """
 from __future__ import annotations
 
@@ -47,15 +48,19 @@ from simulator.jobs import run_jobs
 from simulator.physics.acoustics import (
     AUDIO_SAMPLE_RATE_HZ,
     Ambience,
+    AmbienceDistribution,
     band_level_db,
+    draw_ambience,
     synthesize_audio,
 )
 from simulator.physics.rf import RFConfig, spectrogram_image, synthesize_rf
 from simulator.seeding import rng_for
+from simulator.sensors.microphone import RecorderConfig, record
 
 AUDIBLE_BAND_HZ = (200.0, 8000.0)     # band in which drone and background levels are compared
 VISIBLE_MIN_PX = 1.0                  # projected size below which a target is not "in view"
 _TRIDENT_SEED_TAG = 6                  # separates clip seeds from other users of the "generation" stream
+_RECORDER_INDEX = 0                    # recorder draws: rng_for(clip seed, "acoustics", 0, RECORDER_STREAM_INDEX)
 
 FramesFn = Callable[..., np.ndarray]  # (scenario, seed, n_frames, width_px, height_px[, layout=Scenario])
 
@@ -87,6 +92,14 @@ class ClipSpec(_Model):
 
 
 Span = tuple[float, float]
+# TRIDENT scenes' ambience (the values of the scene distribution before the one AmbienceDistribution):
+# wind and three optional beds; residual, rustle and distant aircraft off (probability 0: no draws)
+TRIDENT_AMBIENCE = AmbienceDistribution(
+    wind_db=(32.0, 50.0), gust_depth=(0.2, 0.9), traffic_probability=0.4, traffic_db=(36.0, 52.0),
+    rain_probability=0.15, rain_db=(38.0, 52.0), birdsong_probability=0.4, birdsong_db=(32.0, 48.0),
+    residual_probability=0.0, rustle_probability=0.0, aircraft_probability=0.0)
+_LEGACY_AMBIENCE_KEYS = ("wind_db", "traffic_probability", "traffic_db", "rain_probability", "rain_db",
+                         "birdsong_probability", "birdsong_db")
 
 
 class SceneDistribution(_Model):
@@ -119,19 +132,30 @@ class SceneDistribution(_Model):
     air_temperature_k: Span = (273.0, 305.0)
     relative_humidity: Span = (0.25, 0.95)
     visibility_m: Span = (4000.0, 40000.0)
-    wind_db: Span = (32.0, 50.0)
-    traffic_probability: float = Field(default=0.4, ge=0.0, le=1.0)
-    traffic_db: Span = (36.0, 52.0)
-    rain_probability: float = Field(default=0.15, ge=0.0, le=1.0)
-    rain_db: Span = (38.0, 52.0)
-    birdsong_probability: float = Field(default=0.4, ge=0.0, le=1.0)
-    birdsong_db: Span = (32.0, 48.0)
+    ambience: AmbienceDistribution = Field(default_factory=lambda: TRIDENT_AMBIENCE, description=(
+        "ambient beds per scene (simulator.physics.acoustics.AmbienceDistribution)"))
     max_birds: int = Field(default=2, ge=0, le=6)
     airliner_probability: float = Field(default=0.35, ge=0.0, le=1.0)
     wifi_probability: float = Field(default=0.6, ge=0.0, le=1.0)
     wifi_rx_dbm: Span = (-80.0, -58.0)
     bluetooth_probability: float = Field(default=0.5, ge=0.0, le=1.0)
     bluetooth_rx_dbm: Span = (-84.0, -64.0)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _ambience_defaults(cls, data: Any) -> Any:
+        """An ``ambience`` mapping is completed from TRIDENT_AMBIENCE (not from the sim2real defaults of
+        AmbienceDistribution); the flat keys of older presets (wind_db, traffic_db, ...) are accepted."""
+        if not isinstance(data, dict):
+            return data
+        flat = {k: data[k] for k in _LEGACY_AMBIENCE_KEYS if k in data}
+        given = data.get("ambience")
+        if flat and given is not None:
+            raise ValueError("give the ambience spans either flat (older presets) or under ambience, not both")
+        if isinstance(given, dict) or flat:
+            data = {k: v for k, v in data.items() if k not in _LEGACY_AMBIENCE_KEYS}
+            data["ambience"] = {**TRIDENT_AMBIENCE.model_dump(), **(given or {}), **flat}
+        return data
 
     @model_validator(mode="after")
     def _splits(self) -> SceneDistribution:
@@ -154,7 +178,10 @@ class TridentConfig(_Model):
     video_fps: int = Field(default=VIDEO_FPS, ge=1, le=240)
     frames_per_segment: int = Field(default=FRAMES_PER_SEGMENT, ge=1)
     video_px: int = Field(default=VIDEO_PX, ge=16, le=1024)
-    full_scale_pa: float = Field(default=0.1, gt=0.0, description="WAV 1.0 == this pressure (0.1 Pa = 74 dB SPL)")
+    full_scale_pa: float = Field(default=0.1, gt=0.0, description=(
+        "the pressure that reaches WAV 1.0 at 0 dB recorder input gain (0.1 Pa = 74 dB SPL)"))
+    recorder: RecorderConfig = Field(default_factory=RecorderConfig, description=(
+        "the recording chain (simulator.sensors.microphone); enabled: false writes pressure / full_scale_pa"))
     save_iq: bool = True
     jpeg_quality: int = Field(default=95, ge=10, le=100)
     rf: RFConfig = Field(default_factory=RFConfig)
@@ -316,11 +343,7 @@ def draw_scene(dist: SceneDistribution, config: TridentConfig, seed: int, index:
     atmosphere = {"air_temperature_k": round(_u(rng, dist.air_temperature_k), 2),
                   "relative_humidity": round(_u(rng, dist.relative_humidity), 3),
                   "visibility_m": round(_logu(rng, dist.visibility_m), 1)}
-    amb = {"wind_db": round(_u(rng, dist.wind_db), 1), "gust_depth": round(_u(rng, (0.2, 0.9)), 2)}
-    for bed in ("traffic", "rain", "birdsong"):
-        on = rng.random() < getattr(dist, f"{bed}_probability")
-        level = _u(rng, getattr(dist, f"{bed}_db"))
-        amb[f"{bed}_db"] = round(level, 1) if on else None
+    ambience = draw_ambience(rng, dist.ambience)
     wifi_on, wifi_db = rng.random() < dist.wifi_probability, _u(rng, dist.wifi_rx_dbm)
     bt_on, bt_db = rng.random() < dist.bluetooth_probability, _u(rng, dist.bluetooth_rx_dbm)
     rf = config.rf.model_copy(update={"wifi_rx_dbm": round(wifi_db, 1) if wifi_on else None,
@@ -339,9 +362,9 @@ def draw_scene(dist: SceneDistribution, config: TridentConfig, seed: int, index:
                   "drone_px_drawn": round(px, 2), "hfov_deg": round(hfov, 3), "elevation_deg": round(el, 2),
                   "sun_elevation_deg": sky["sun"]["elevation_deg"], "cloudy": bool(cloudy),
                   "n_birds": sum(c["kind"] == "bird" for c in confusers), "airliner": bool(airliner),
-                  "rain": amb["rain_db"] is not None, "traffic": amb["traffic_db"] is not None,
+                  "rain": ambience.rain_db is not None, "traffic": ambience.traffic_db is not None,
                   "wifi": bool(wifi_on), "bluetooth": bool(bt_on), "rf_silent": rf_silent}
-    return DrawnScene(index=index, name=name, drone=drone_s, twin=twin_s, ambience=Ambience(**amb),
+    return DrawnScene(index=index, name=name, drone=drone_s, twin=twin_s, ambience=ambience,
                       rf_silent=rf_silent, rf=rf, conditions=conditions)
 
 
@@ -401,7 +424,8 @@ def synthesize_clip(scenario: Scenario, seed: int, config: TridentConfig, *, rf_
     timeline = build_timeline(scenario, seed)
     fs = AUDIO_SAMPLE_RATE_HZ
     audio = synthesize_audio(timeline, seed, ambience=ambience, duration_s=config.clip_duration_s, sample_rate_hz=fs)
-    samples = (audio.mix_pa.astype(np.float64) / config.full_scale_pa).astype(np.float32)
+    samples = record(audio.mix_pa, fs, seed=seed, index=_RECORDER_INDEX, full_scale_pa=config.full_scale_pa,
+                     config=config.recorder)
     mfcc = mfcc_segments(samples, fs, n_seg)
     starts = np.arange(n_seg) * SEGMENT_S
     rf_cfg = rf_config or config.rf

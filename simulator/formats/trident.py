@@ -154,7 +154,7 @@ class SegmentTruth:
 class TridentClip:
     """Everything of one clip before writing."""
 
-    audio: np.ndarray            # (N,) float32 WAV samples (pressure / full_scale_pa)
+    audio: np.ndarray            # (N,) float32 WAV samples (recorded, full scale 1.0)
     sample_rate_hz: float
     mfcc: np.ndarray             # (S, 1, 40, 40) float32
     rf: RFCapture                # I/Q (S, n) complex64 and spectrogram_dbm (S, 112, 112)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import scipy.fft as sfft
 from numpy.lib.stride_tricks import sliding_window_view
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from scenes.kinds import DRONE_KINDS
 from scenes.kinds import DRONE_SIZE_M as _REFERENCE_SIZE_M
@@ -67,8 +67,8 @@ class RotorNoise:
 LEGACY_ROTOR_NOISE = RotorNoise()
 # ranges of draw_rotor_noise (uniform unless said): see docs/AUDIO_RF.md "Rotor noise (issue 24)"
 ROTOR_NOISE_RANGES = {
-    "harmonic_decay": (0.3, 1.2), "harmonic_top_hz": (3000.0, 10000.0), "broadband_offset_db": (0.0, 10.0),
-    "broadband_low_hz": (100.0, 400.0), "broadband_high_hz": (13000.0, 16000.0), "broadband_tilt_db": (-5.0, -2.5),
+    "harmonic_decay": (0.3, 1.2), "harmonic_top_hz": (3000.0, 10000.0), "broadband_offset_db": (10.0, 20.0),
+    "broadband_low_hz": (100.0, 400.0), "broadband_high_hz": (15000.0, 20000.0), "broadband_tilt_db": (-4.0, -1.5),
     "bpf_modulation": (0.1, 0.6), "imbalance": (0.02, 0.15), "motor_line": (0.02, 0.15),
     "pwm_hz": (8000.0, 12000.0, 16000.0), "pwm_level": (0.0, 0.08), "amplitude_fluctuation_db": (1.0, 4.0),
     "amplitude_fluctuation_hz": (0.3, 3.0),
@@ -595,54 +595,85 @@ def airliner_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random
     return jet * db_spl_to_pa(AIRLINER_DB_1M)
 
 
-# Helicopter (light turbine helicopter, e.g. a 5-8 m rotor radius): main rotor at a tip speed of
-# ~200-220 m/s (BPF 10-30 Hz) heard as impulsive thickness/loading noise and blade slap (blade-vortex
-# interaction) with harmonics into the hundreds of Hz, tail rotor BPF 50-130 Hz, turbine whine (a
-# compressor tone 2-8 kHz over broadband) and rotor broadband; a ~300 m flyover is 80-90 dB(A)
-# (ICAO Annex 16 Vol. I chapter 11 limits are 82-89 EPNdB-like levels for light helicopters).
+# Helicopter (light turbine helicopter). What is known, and used as such: the main rotor is governed
+# (constant rpm), its blade-passing frequency BPF = blades x rpm / 60 is 12-30 Hz for light helicopters
+# (2 blades at ~400 rpm: R44, Bell 206; 3 at ~390: AS350; 4 at ~395: EC135, A109, Bell 429); the tail
+# rotor is geared to it (4.5-6.5 x the main shaft rate, 2-4 blades: BPF 50-170 Hz); thickness/loading
+# noise is a low-frequency pulse train at the BPF, blade slap (blade-vortex interaction) sharp broadband
+# pulses at the BPF, and the rotor's broadband self-noise is amplitude-modulated at the BPF ('swish');
+# the turboshaft's compressor adds tones at several kHz. A ~300 m flyover is 80-90 dB(A). What is not
+# known per helicopter (levels of the parts, pulse widths, modulation depth, turbine tones) is drawn from
+# HELICOPTER_RANGES (domain randomisation; the envelope-modulation depth at the BPF, 15-24 dB over the
+# modulation floor in every band up to 14 kHz, and the tones at 6-12 kHz were read off the calibration
+# half of the Svanström recordings: docs/SIM2REAL_AUDIO.md).
 HELICOPTER_DB_1M = 126.0          # overall unweighted level at 1 m of the sum of the parts below
-HELICOPTER_RANGES = {"radius_m": (4.0, 8.0), "tip_speed_mps": (190.0, 225.0), "main_blades": (2, 3, 4, 5),
-                     "tail_ratio": (4.5, 6.5), "tail_blades": (2, 4), "pulse_ms": (0.5, 2.0),
-                     "thump_db": (-20.0, -10.0), "slap_db": (-12.0, -4.0), "tail_db": (-20.0, -10.0),
-                     "turbine_hz": (2000.0, 8000.0), "turbine_db": (-14.0, -4.0),
-                     "broadband_high_hz": (6000.0, 14000.0)}
+HELICOPTER_MAIN_RPM = (330.0, 420.0)   # governed main-rotor speed when no track gives it
+HELICOPTER_RANGES = {"main_blades": (2, 3, 3, 4, 4), "tail_ratio": (4.5, 6.5), "tail_blades": (2, 4),
+                     "thump_ms": (2.0, 6.0), "thump_db": (-18.0, -2.0), "slap_ms": (0.15, 0.6),
+                     "slap_db": (-22.0, -4.0), "swish_width": (0.08, 0.25), "swish_depth": (0.1, 1.3),
+                     "broadband_low_hz": (200.0, 400.0), "broadband_tilt_db": (-8.0, -6.0),
+                     "tip_noise_db": (-22.0, -10.0), "tail_db": (-20.0, -10.0),
+                     "turbine_tones": (1, 3), "turbine_hz": (6000.0, 12000.0), "turbine_db": (-30.0, -16.0),
+                     "turbine_noise_db": (-26.0, -14.0)}
 
 
-def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random.Generator) -> np.ndarray:
-    """Pressure at 1 m of a helicopter, parts drawn from ``HELICOPTER_RANGES`` (domain randomisation).
+def _periodic_pulses(phase: np.ndarray, width: float, jitter: np.ndarray | None = None) -> np.ndarray:
+    """Gaussian pulses (std ``width`` periods) at every integer of ``phase`` (cycles), optionally each
+    pass scaled by ``jitter[pass]``."""
+    frac = phase - np.floor(phase + 0.5)                     # periods to the nearest pass
+    pulses = np.exp(-0.5 * (frac / width) ** 2)
+    if jitter is not None:
+        passes = np.floor(phase + 0.5).astype(np.int64)
+        pulses = pulses * jitter[passes - passes.min()]
+    return pulses
 
-    Rotor broadband 200 Hz-6..14 kHz (-7 dB/octave) modulated at the main BPF is the reference part;
-    main rotor: a train of blade pulses (Gaussian, 0.5-2 ms) at the BPF with per-pass amplitude
-    jitter (-20..-10 dB) and a sharper blade-slap train (-12..-4 dB), tail rotor: lines k x its BPF (k^-1, -20..-10 dB),
-    turbine: 1-16 kHz noise (-2 dB/octave) with a wandering 2-8 kHz tone (-14..-4 dB). Phases run on the emission clock.
+
+def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random.Generator, *,
+                         main_rpm: np.ndarray | float | None = None, main_blades: int | None = None) -> np.ndarray:
+    """Pressure at 1 m of a helicopter (emission clock through ``retarded``), parts drawn from
+    ``HELICOPTER_RANGES``.
+
+    ``main_rpm`` (scalar or per microphone sample) and ``main_blades`` come from the target's rotor
+    (scene schema) when given, else they are drawn (``HELICOPTER_MAIN_RPM``, 2-4 blades). Parts, each
+    scaled re the rotor broadband: rotor broadband from 200-400 Hz to 16 kHz (tilt -8..-6 dB/octave) and
+    blade-tip self-noise 2-16 kHz (-1 dB/octave, -22..-10 dB), both with an exponential 'swish'
+    envelope at the BPF; thickness/loading thump (2-6 ms pulses at the BPF, per-pass
+    jitter); blade slap (0.15-0.6 ms pulses); tail-rotor lines k x its BPF (k^-1); turbine: 1-3
+    wandering compressor tones at 6-12 kHz and 1-16 kHz noise. The sum is scaled to HELICOPTER_DB_1M.
     """
     r = HELICOPTER_RANGES
     u = lambda name: float(rng.uniform(*r[name]))  # noqa: E731
-    shaft_hz = u("tip_speed_mps") / (2 * np.pi * u("radius_m"))
-    main_blades = int(rng.choice(r["main_blades"]))
-    bpf = shaft_hz * main_blades
-    tail_bpf = shaft_hz * u("tail_ratio") * int(rng.choice(r["tail_blades"]))
+    drawn_rpm, drawn_blades = float(rng.uniform(*HELICOPTER_MAIN_RPM)), int(rng.choice(r["main_blades"]))
+    blades = drawn_blades if main_blades is None else int(main_blades)   # drawn anyway: later draws stay put
+    if blades < 1:
+        raise ValueError(f"main_blades must be >= 1, got {blades}")
+    rpm = np.broadcast_to(np.asarray(drawn_rpm if main_rpm is None else main_rpm, dtype=np.float64),
+                          retarded.tau_s.shape)
+    _check_nonnegative("main_rpm", rpm)
     tau = retarded.tau_s - float(retarded.tau_s[0])
-    phase = bpf * tau + rng.uniform()
-    frac = phase - np.floor(phase) - 0.5                              # time to the nearest blade pass, in periods
-    width = u("pulse_ms") / 1000.0 * bpf
-    passes = np.floor(phase).astype(np.int64)
-    jitter = 10 ** (rng.normal(0.0, 2.0, size=int(passes.max() - passes.min()) + 2) / 20)
-    pulses = np.exp(-0.5 * (frac / width) ** 2) * jitter[passes - passes.min()]
-    pulses -= pulses.mean()
-    slap = np.exp(-0.5 * (frac / (width * 0.3)) ** 2) * jitter[::-1][passes - passes.min()]
-    slap -= slap.mean()
+    dtau = np.diff(tau, prepend=tau[0])
+    shaft_cycles = np.cumsum(rpm / 60.0 * dtau) + rng.uniform()          # main shaft revolutions (emission clock)
+    phase = blades * shaft_cycles                                        # blade passes
+    tail_phase = u("tail_ratio") * int(rng.choice(r["tail_blades"])) * shaft_cycles
+    n_pass = int(np.ceil(phase.max() - phase.min())) + 3
+    jitter = 10 ** (rng.normal(0.0, 2.0, size=n_pass) / 20)
+    bpf = float(np.median(rpm)) / 60.0 * blades
+    thump = _periodic_pulses(phase, u("thump_ms") / 1000.0 * bpf, jitter)
+    slap = _periodic_pulses(phase, u("slap_ms") / 1000.0 * bpf, jitter[::-1])
+    swish = np.exp(u("swish_depth") * _periodic_pulses(phase, u("swish_width")))
+    broad = _source_noise(rng, retarded, sample_rate_hz, u("broadband_low_hz"), 16000.0, u("broadband_tilt_db")) * swish
+    tip = _source_noise(rng, retarded, sample_rate_hz, 2000.0, 16000.0, -1.0) * swish
     k = np.arange(1, 16)
-    tail = np.sum(k[:, None] ** -1.0 * np.cos(2 * np.pi * k[:, None] * tail_bpf * tau[None, :]
+    tail = np.sum(k[:, None] ** -1.0 * np.cos(2 * np.pi * k[:, None] * tail_phase[None, :]
                                               + rng.uniform(0, 2 * np.pi, size=(k.size, 1))), axis=0)
-    f_turb = u("turbine_hz") * (1 + 0.01 * _smooth_random(rng, tau.size, sample_rate_hz, 0.5))
-    turbine = 0.5 * np.cos(2 * np.pi * np.cumsum(f_turb) / sample_rate_hz) + _source_noise(rng, retarded,
-                                                                                           sample_rate_hz, 1000.0,
-                                                                                           16000.0, -2.0)
-    broad = _source_noise(rng, retarded, sample_rate_hz, 200.0, u("broadband_high_hz"),
-                          -7.0) * (1 + 0.5 * np.cos(2 * np.pi * phase))
-    parts = [(broad, 0.0), (pulses, u("thump_db")), (slap, u("slap_db")), (tail, u("tail_db")),
-             (turbine, u("turbine_db"))]
+    turbine = np.zeros(tau.size)
+    for _ in range(int(rng.integers(r["turbine_tones"][0], r["turbine_tones"][1] + 1))):
+        f_t = u("turbine_hz") * (1 + 0.005 * _smooth_random(rng, tau.size, sample_rate_hz, 0.3))
+        turbine += np.cos(2 * np.pi * np.cumsum(f_t) / sample_rate_hz + rng.uniform(0, 2 * np.pi))
+    turbine_noise = _source_noise(rng, retarded, sample_rate_hz, 1000.0, 16000.0, -2.0)
+    parts = [(broad, 0.0), (tip, u("tip_noise_db")), (thump - thump.mean(), u("thump_db")),
+             (slap - slap.mean(), u("slap_db")), (tail, u("tail_db")), (turbine, u("turbine_db")),
+             (turbine_noise, u("turbine_noise_db"))]
     total = np.zeros(tau.size)
     for x, db in parts:
         total += x / max(float(np.sqrt(np.mean(x ** 2))), 1e-30) * 10 ** (db / 20)
@@ -723,7 +754,10 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
     elif track.kind == "airliner":
         src = airliner_signature(ret, sample_rate_hz, rng)
     elif track.kind == "helicopter":
-        src = helicopter_signature(ret, sample_rate_hz, rng)
+        rpm_frames = np.asarray(track.rotor_rpm, dtype=np.float64).reshape(len(frame_times_s), -1)
+        main_rpm = np.interp(ret.tau_s, frame_times_s, rpm_frames[:, 0]) if rpm_frames.size else None
+        src = helicopter_signature(ret, sample_rate_hz, rng, main_rpm=main_rpm,
+                                   main_blades=getattr(track, "n_blades", None) if rpm_frames.size else None)
     else:
         raise ValueError(f"kind: unknown target kind {track.kind!r}")
     ground = {}
@@ -763,6 +797,58 @@ class Ambience(BaseModel):
         "distant mixed outdoor sound (far traffic, industry, people): broadband 50 Hz-10 kHz"))
     rustle_db: float | None = Field(default=None, ge=0.0, le=110.0, description="leaves and grass moved by the wind")
     aircraft_db: float | None = Field(default=None, ge=0.0, le=110.0, description="a distant aircraft passing")
+
+
+OPTIONAL_BEDS = ("traffic", "rain", "birdsong", "residual", "rustle", "aircraft")
+_Span = tuple[float, float]
+
+
+class AmbienceDistribution(BaseModel):
+    """Where each clip's :class:`Ambience` is drawn from (domain randomisation): spans (low, high) of
+    dB SPL drawn uniformly, and for every optional bed the probability that it is on. The one home of
+    the ambience mix: TRIDENT scene distributions and the sim2real audio clips both draw through
+    :func:`draw_ambience`. The defaults are the sim2real fit (levels read off the calibration half of
+    the Svanström recordings, docs/SIM2REAL_AUDIO.md); a bed with probability 0 takes no draws."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    wind_db: _Span = (24.0, 42.0)
+    gust_depth: _Span = (0.5, 1.0)
+    traffic_probability: float = Field(default=0.4, ge=0.0, le=1.0)
+    traffic_db: _Span = (30.0, 46.0)
+    rain_probability: float = Field(default=0.15, ge=0.0, le=1.0)
+    rain_db: _Span = (32.0, 46.0)
+    birdsong_probability: float = Field(default=0.4, ge=0.0, le=1.0)
+    birdsong_db: _Span = (22.0, 36.0)
+    residual_probability: float = Field(default=1.0, ge=0.0, le=1.0)
+    residual_db: _Span = (20.0, 34.0)
+    rustle_probability: float = Field(default=0.5, ge=0.0, le=1.0)
+    rustle_db: _Span = (18.0, 32.0)
+    aircraft_probability: float = Field(default=0.2, ge=0.0, le=1.0)
+    aircraft_db: _Span = (35.0, 52.0)
+
+    @model_validator(mode="after")
+    def _spans(self) -> AmbienceDistribution:
+        for name, value in self.model_dump().items():
+            if isinstance(value, tuple) and value[0] > value[1]:
+                raise ValueError(f"{name}: low {value[0]} exceeds high {value[1]}")
+        return self
+
+
+def draw_ambience(rng: np.random.Generator, dist: AmbienceDistribution) -> Ambience:
+    """One clip's beds from ``dist``: wind level and gust depth, then per optional bed (in OPTIONAL_BEDS
+    order) on/off and a level (both drawn whenever its probability is > 0, so the draws do not depend
+    on the outcome). Levels rounded to 0.1 dB."""
+    amb: dict[str, float | None] = {"wind_db": round(float(rng.uniform(*dist.wind_db)), 1),
+                                    "gust_depth": round(float(rng.uniform(*dist.gust_depth)), 2)}
+    for bed in OPTIONAL_BEDS:
+        p = getattr(dist, f"{bed}_probability")
+        if p <= 0:
+            continue
+        on = rng.random() < p
+        level = float(rng.uniform(*getattr(dist, f"{bed}_db")))
+        amb[f"{bed}_db"] = round(level, 1) if on else None
+    return Ambience(**amb)
 
 
 def _scale_to(x: np.ndarray, level_db: float) -> np.ndarray:

@@ -278,24 +278,9 @@ def compare_statistics(real: dict[str, np.ndarray], synthetic: dict[str, np.ndar
 def _config_model():
     from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-    Span = tuple[float, float]
+    from simulator.physics.acoustics import AmbienceDistribution
 
-    class AmbienceMix(BaseModel):
-        model_config = ConfigDict(extra="forbid", frozen=True)
-        wind_db: Span = (24.0, 42.0)
-        gust_depth: Span = (0.5, 1.0)
-        traffic_probability: float = Field(default=0.4, ge=0.0, le=1.0)
-        traffic_db: Span = (30.0, 46.0)
-        rain_probability: float = Field(default=0.15, ge=0.0, le=1.0)
-        rain_db: Span = (32.0, 46.0)
-        birdsong_probability: float = Field(default=0.4, ge=0.0, le=1.0)
-        birdsong_db: Span = (22.0, 36.0)
-        residual_probability: float = Field(default=1.0, ge=0.0, le=1.0)
-        residual_db: Span = (20.0, 34.0)
-        rustle_probability: float = Field(default=0.5, ge=0.0, le=1.0)
-        rustle_db: Span = (18.0, 32.0)
-        aircraft_probability: float = Field(default=0.2, ge=0.0, le=1.0)
-        aircraft_db: Span = (35.0, 52.0)
+    Span = tuple[float, float]
 
     class SyntheticAudioConfig(BaseModel):
         """What the synthetic clips draw from (every span is (low, high); ranges log-uniform)."""
@@ -310,9 +295,13 @@ def _config_model():
                                           description="range spans, one picked uniformly per clip")
         drone_speed_mps: Span = (0.0, 10.0)
         elevation_deg: Span = (3.0, 45.0)
-        helicopter_range_m: Span = (60.0, 600.0)
+        helicopter_range_m: Span = (50.0, 300.0)
+        helicopter_height_m: Span = (30.0, 250.0)
         helicopter_speed_mps: Span = (0.0, 60.0)
-        ambience: AmbienceMix = Field(default_factory=AmbienceMix)
+        helicopter_blades: list[int] = Field(default=[2, 3, 3, 4, 4], min_length=1)
+        helicopter_rpm: Span = (330.0, 420.0)
+        helicopter_diameter_m: Span = (10.0, 16.0)
+        ambience: AmbienceDistribution = Field(default_factory=AmbienceDistribution)
         recorder: bool = Field(default=True, description="pass the mix through the recording chain when it exists")
         n_per_class: int = Field(default=20, ge=1, le=1000)
         quick_n_per_class: int = Field(default=2, ge=1, le=1000)
@@ -325,7 +314,8 @@ def _config_model():
                 if kind not in self.drone_size_m:
                     raise ValueError(f"drone_size_m: no size span for {kind!r}")
             spans = {"drone_speed_mps": self.drone_speed_mps, "elevation_deg": self.elevation_deg,
-                     "helicopter_range_m": self.helicopter_range_m,
+                     "helicopter_range_m": self.helicopter_range_m, "helicopter_height_m": self.helicopter_height_m,
+                     "helicopter_rpm": self.helicopter_rpm, "helicopter_diameter_m": self.helicopter_diameter_m,
                      **{f"drone_size_m.{k}": v for k, v in self.drone_size_m.items()},
                      **{f"drone_range_m[{i}]": v for i, v in enumerate(self.drone_range_m)}}
             for name, (lo, hi) in spans.items():
@@ -360,15 +350,6 @@ def _u(rng: np.random.Generator, span: tuple[float, float]) -> float:
 
 def _logu(rng: np.random.Generator, span: tuple[float, float]) -> float:
     return float(np.exp(rng.uniform(np.log(span[0]), np.log(span[1]))))
-
-
-def _draw_ambience(rng: np.random.Generator, mix) -> dict[str, Any]:
-    amb = {"wind_db": round(_u(rng, mix.wind_db), 1), "gust_depth": round(_u(rng, mix.gust_depth), 2)}
-    for bed in ("traffic", "rain", "birdsong", "residual", "rustle", "aircraft"):
-        on = rng.random() < getattr(mix, f"{bed}_probability")
-        level = _u(rng, getattr(mix, f"{bed}_db"))
-        amb[f"{bed}_db"] = round(level, 1) if on else None
-    return amb
 
 
 def _drone_scenario(cfg, rng: np.random.Generator, name: str):
@@ -415,30 +396,35 @@ def _record(cfg, mix_pa: np.ndarray, seed: int, index: int) -> np.ndarray:
     return (np.asarray(mix_pa, dtype=np.float64) / cfg.full_scale_pa).astype(np.float32)
 
 
-def _helicopter_mix(cfg, rng: np.random.Generator, clip_seed: int, n: int) -> np.ndarray:
-    """A helicopter passing at a drawn range (log-uniform), height and speed: a hand-built track (the
-    scenario schema has no helicopter target yet) through ``synthesize_target`` (delay, Doppler,
-    spreading, ISO 9613 absorption and ground effect)."""
-    from simulator.physics import acoustics as ac
-    from simulator.physics.timeline import TargetTrack
+def _helicopter_scenario(cfg, rng: np.random.Generator, name: str):
+    """A light helicopter (scene-schema target: main rotor blades and governed rpm drawn, diameter 10-16 m)
+    passing or hovering at a drawn range (log-uniform), height and speed, with drawn air."""
+    from scenes.schema import Scenario
 
     range_m = _logu(rng, cfg.helicopter_range_m)
     speed = _u(rng, cfg.helicopter_speed_mps)
-    height = min(_u(rng, (60.0, 400.0)), 0.9 * range_m)
+    height = min(_u(rng, cfg.helicopter_height_m), 0.9 * range_m)
     heading, az = _u(rng, (0.0, 2 * np.pi)), _u(rng, (0.0, 2 * np.pi))
     horiz = np.sqrt(max(range_m ** 2 - height ** 2, 1.0))
     centre = np.array([horiz * np.cos(az), horiz * np.sin(az), height])
-    times = np.arange(0.0, cfg.duration_s + 0.5, 0.1)
-    vel = speed * np.array([np.cos(heading), np.sin(heading), 0.0])
-    pos = centre + (times - cfg.duration_s / 2)[:, None] * vel[None, :]
-    f = times.size
-    track = TargetTrack(target_id=1, name="helicopter", kind="helicopter", size_m=12.0, position_m=pos,
-                        velocity_mps=np.tile(vel, (f, 1)), rotation=np.tile(np.eye(3), (f, 1, 1)),
-                        rotor_rpm=np.zeros((f, 0)), rotor_angle_rad=np.zeros(f), flap_phase_rad=np.zeros(f))
-    x, _ = ac.synthesize_target(track, times, np.array([0.0, 0.0, 1.5]), n, cfg.sample_rate_hz, _u(rng, (273.0, 303.0)),
-                                _u(rng, (0.3, 0.95)), rng_for(clip_seed, "acoustics", 0),
-                                ground_factor=ac.DEFAULT_GROUND_FACTOR)
-    return x
+    blades = int(rng.choice(cfg.helicopter_blades))
+    rotor = {"main_blades": blades, "main_rpm": round(_u(rng, cfg.helicopter_rpm), 1)}
+    size_m = round(_u(rng, cfg.helicopter_diameter_m), 2)
+    air = {"air_temperature_k": round(_u(rng, (273.0, 303.0)), 2), "relative_humidity": round(_u(rng, (0.3, 0.95)), 3)}
+    if speed < 1.0:
+        trajectory = {"kind": "hover", "center_m": np.round(centre, 2).tolist(), "drift_m": 2.0}
+    else:
+        half = 0.5 * speed * cfg.duration_s * np.array([np.cos(heading), np.sin(heading), 0.0])
+        trajectory = {"kind": "waypoints", "speed_mps": round(speed, 3),
+                      "points_m": [np.round(centre - half, 2).tolist(), np.round(centre + half, 2).tolist()]}
+    scenario = Scenario.model_validate({
+        "name": name, "duration_s": cfg.duration_s, "frame_rate_hz": 25.0, "atmosphere": air,
+        "targets": [{"name": "helicopter", "kind": "helicopter", "size_m": size_m, "rotor": rotor,
+                     "trajectory": trajectory}],
+        "camera_rig": {"position_m": [0.0, 0.0, 1.5], "look_at_m": np.round(centre, 2).tolist(),
+                       "rgb": {"width_px": 16, "height_px": 16, "hfov_deg": 30.0},
+                       "thermal": {"width_px": 16, "height_px": 16, "hfov_deg": 30.0}}})
+    return scenario, {"range_m": range_m, "speed_mps": speed, **rotor}
 
 
 def helicopter_available() -> bool:
@@ -472,16 +458,16 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
         for j in range(n_per_class):
             rng = rng_for(seed, "generation", _SYNTH_TAG, CLASSES.index(cls), j)
             clip_seed = int(rng.integers(0, 2 ** 31 - 1))
-            drawn = _draw_ambience(rng, cfg.ambience)
-            ambience = ac.Ambience(**{k: v for k, v in drawn.items() if k in ac.Ambience.model_fields})
+            ambience = ac.draw_ambience(rng, cfg.ambience)
             if cls == "DRONE":
                 scenario, _ = _drone_scenario(cfg, rng, f"synthetic_drone_{j:04d}")
                 timeline = build_timeline(scenario, clip_seed)
                 mix = ac.synthesize_audio(timeline, clip_seed, ambience=ambience, duration_s=cfg.duration_s,
                                           sample_rate_hz=sr).mix_pa
             elif cls == "HELICOPTER":
-                mix = (_helicopter_mix(cfg, rng, clip_seed, n)
-                       + sum(ac.synthesize_ambience(ambience, n, sr, clip_seed).values()))
+                scenario, _ = _helicopter_scenario(cfg, rng, f"synthetic_helicopter_{j:04d}")
+                mix = ac.synthesize_audio(build_timeline(scenario, clip_seed), clip_seed, ambience=ambience,
+                                          duration_s=cfg.duration_s, sample_rate_hz=sr).mix_pa
             else:
                 mix = sum(ac.synthesize_ambience(ambience, n, sr, clip_seed).values())
             samples = _record(cfg, np.asarray(mix, dtype=np.float64), clip_seed, CLASSES.index(cls))

@@ -248,7 +248,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     # 2. synthetic counterpart --------------------------------------------------------------------
     t = time.time()
     syn_calls = []
-    for k, cls in enumerate(classes):
+    for k, cls in enumerate(classes if sensors else []):    # audio only: no video to render
         gen_cfg = _generation_config(cfg, cls, base_dir, quick)
         folder = out / "synthetic" / cls
         try:

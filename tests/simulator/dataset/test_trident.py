@@ -121,3 +121,22 @@ def test_config_errors_name_the_field_and_preset_validates():
     labels = [tr.clip_label(tr.resolve_scenario(c)) for c in cfg.clips for _ in range(c.count)]
     assert labels.count("Drone") >= 2 and labels.count("Background") >= 2
     assert any(c.rf_silent for c in cfg.clips)
+
+
+def test_audio_goes_through_the_recording_chain():
+    from simulator.physics.acoustics import synthesize_audio
+    from simulator.physics.timeline import build_timeline
+    from simulator.sensors.microphone import record
+
+    targets = [_hover("d", [0, 40, 10])]
+    recorded, cfg = _clip(targets)
+    steps = recorded.audio.astype(np.float64) * 32767
+    assert np.allclose(steps, np.round(steps), atol=1e-3)                  # the recorder's 16-bit samples
+    scen = tr.clip_scenario(tr.resolve_scenario(cfg.clips[0]), cfg)
+    mix = synthesize_audio(build_timeline(scen, 3), 3, ambience=cfg.clips[0].ambience, duration_s=1.0).mix_pa
+    assert recorded.audio.tobytes() == record(mix, 44100, seed=3, index=0, full_scale_pa=0.1,
+                                              config=cfg.recorder).tobytes()
+    off = _config([{"scenario": _scenario(targets)}], recorder={"enabled": False})
+    raw = tr.synthesize_clip(scen, 3, off, frames=_frames(scen, 3, 28, 112, 112))
+    assert np.allclose(raw.audio, mix / 0.1, atol=1e-6)                     # switched off: pressure / full scale
+    assert np.array_equal(raw.truth.audio_snr_db, recorded.truth.audio_snr_db)   # truth comes from pressure

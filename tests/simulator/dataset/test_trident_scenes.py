@@ -101,3 +101,21 @@ def test_scene_config_errors_name_the_field():
         _cfg(drone_px=[30.0, 3.0])
     with pytest.raises(UserInputError, match="video_render_stride"):
         tr.load_trident_config({"name": "x", "video_render_stride": 3, "scenes": {"n_scenes": 5}})
+
+
+def test_ambience_distribution_has_one_home_and_older_flat_keys_still_load():
+    from simulator.physics.acoustics import AmbienceDistribution
+
+    nested = _cfg(ambience={"wind_db": [25.0, 42.0], "rain_probability": 0.0}).scenes
+    flat = _cfg(wind_db=[25.0, 42.0], rain_probability=0.0).scenes
+    assert isinstance(nested.ambience, AmbienceDistribution) and nested.ambience == flat.ambience
+    assert nested.ambience.wind_db == (25.0, 42.0) and nested.ambience.traffic_db == tr.TRIDENT_AMBIENCE.traffic_db
+    assert nested.ambience.residual_probability == 0.0      # unset fields come from TRIDENT_AMBIENCE
+    cfg = tr.load_trident_config({"name": "x", "video_render_stride": 7, "scenes": {"n_scenes": 5}})
+    drawn = [tr.draw_scene(cfg.scenes, cfg, 4, j).ambience for j in range(8)]
+    assert all(a.residual_db is None and a.rustle_db is None and a.aircraft_db is None for a in drawn)
+    assert all(32.0 <= a.wind_db <= 50.0 for a in drawn) and any(a.traffic_db is not None for a in drawn)
+    with pytest.raises(UserInputError, match="either flat"):
+        _cfg(wind_db=[25.0, 42.0], ambience={"rain_db": [30.0, 40.0]})
+    with pytest.raises(UserInputError, match="ambience.*wind_db: low 50.0 exceeds high 40.0"):
+        _cfg(ambience={"wind_db": [50.0, 40.0]})

@@ -35,7 +35,9 @@ def _peak_hz(x: np.ndarray, lo: float, hi: float, pad: int = 8) -> tuple[float, 
 @pytest.mark.parametrize("rpm", [6000.0, 5130.0])
 def test_blade_passing_peak_within_one_bin(rpm):
     track, t = _track([0.0, 60.0, 20.0], [0.0, 0.0, 0.0], rpm=rpm, duration_s=2.0)
-    x, _ = ac.synthesize_target(track, t, MIC, 2 * FS, FS, 288.15, 0.5, rng_for(1, "acoustics", 0))
+    # the clean-line model: drawn rotor noise puts the broadband 10-20 dB over the lines (checked elsewhere)
+    x, _ = ac.synthesize_target(track, t, MIC, 2 * FS, FS, 288.15, 0.5, rng_for(1, "acoustics", 0),
+                                rotor_noise=ac.LEGACY_ROTOR_NOISE)
     expected = rpm / 60.0 * 2
     peak, bin_hz = _peak_hz(x, 0.6 * expected, 1.4 * expected)
     assert abs(peak - expected) <= bin_hz
@@ -46,7 +48,8 @@ def test_doppler_sign_and_size(speed_mps):
     # flying along the line through the microphone: radial speed is exactly |v|
     start = [0.0, 400.0, 1.5] if speed_mps > 0 else [0.0, 50.0, 1.5]
     track, t = _track(start, [0.0, -speed_mps, 0.0], rpm=6000.0, duration_s=4.0)
-    x, _ = ac.synthesize_target(track, t, MIC, 4 * FS, FS, 293.15, 0.5, rng_for(2, "acoustics", 0))
+    x, _ = ac.synthesize_target(track, t, MIC, 4 * FS, FS, 293.15, 0.5, rng_for(2, "acoustics", 0),
+                                rotor_noise=ac.LEGACY_ROTOR_NOISE)
     c = ac.speed_of_sound_mps(293.15)
     f_src = 6000.0 / 60.0 * 2 * 4            # 4th BPF harmonic, 800 Hz: finer relative resolution
     expected = f_src * c / (c - speed_mps)
@@ -295,18 +298,39 @@ def test_pwm_whine_line_at_its_frequency():
     assert abs(peak - 8000.0) <= bin_hz
 
 
-def test_helicopter_level_and_low_frequency_weight():
+def test_helicopter_level_low_frequency_weight_and_blade_passing_modulation():
     n = 2 * FS
     t = np.arange(n) / FS
     ret = ac.Retarded(tau_s=t, dtau_dt=np.ones(n), range_m=np.ones(n))
-    x = ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0))
+    x = ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0), main_rpm=390.0, main_blades=3)
     assert ac.pa_to_db_spl(np.sqrt(np.mean(x ** 2))) == pytest.approx(ac.HELICOPTER_DB_1M, abs=1e-6)
     spec = np.abs(np.fft.rfft(x)) ** 2
     f = np.fft.rfftfreq(n, 1 / FS)
-    assert (spec[f < 1000].sum() > 3
-            * spec[f > 4000].sum())     # rotor noise is low-frequency weighted (20 draws: 4.7-39x)
-    y = ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0))
+    assert spec[f < 1000].sum() > 3 * spec[f > 4000].sum()     # rotor noise is low-frequency weighted
+    # the envelope of the 2-8 kHz band (blade slap, swish) beats at BPF = 3 x 390 / 60 = 19.5 Hz
+    band = np.fft.irfft(np.fft.rfft(x) * ((f > 2000) & (f < 8000)), n)
+    env = (band ** 2)[: n // 441 * 441].reshape(-1, 441).mean(axis=1)          # 10 ms blocks: 100 Hz
+    mod = np.abs(np.fft.rfft(env - env.mean())) ** 2
+    fm = np.fft.rfftfreq(env.size, 0.01)
+    keep = (fm > 5) & (fm < 45)
+    assert fm[keep][np.argmax(mod[keep])] == pytest.approx(19.5, abs=0.5)
+    y = ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0), main_rpm=390.0, main_blades=3)
     assert x.tobytes() == y.tobytes()
+    with pytest.raises(ValueError, match="main_rpm"):
+        ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0), main_rpm=-1.0)
+
+
+def test_ambience_draws_skip_beds_that_are_never_on():
+    base = ac.AmbienceDistribution(rustle_probability=0.0, aircraft_probability=0.0)
+    a = ac.draw_ambience(np.random.default_rng(5), base)
+    assert a.rustle_db is None and a.aircraft_db is None and 24.0 <= a.wind_db <= 42.0
+    # a bed with probability 0 takes no draws: appending one at the end leaves the others' draws alone
+    with_rustle = ac.draw_ambience(np.random.default_rng(5), base.model_copy(update={"rustle_probability": 1.0}))
+    assert with_rustle.rustle_db is not None
+    assert (with_rustle.wind_db, with_rustle.traffic_db, with_rustle.residual_db) == (a.wind_db, a.traffic_db,
+                                                                                      a.residual_db)
+    with pytest.raises(ValueError, match="rain_db: low 50.0 exceeds high 40.0"):
+        ac.AmbienceDistribution(rain_db=(50.0, 40.0))
 
 
 def test_outdoor_beds_levels_and_independence():

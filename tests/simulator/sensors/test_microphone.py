@@ -66,3 +66,39 @@ def test_clipping_and_16_bit_quantisation():
 def test_bad_span_names_the_field():
     with pytest.raises(ValueError, match="agc_target_dbfs"):
         mic.RecorderConfig(agc_target_dbfs=(-10.0, -30.0))
+
+
+def test_codec_band_limit_by_hand_and_in_the_chain():
+    f = np.array([1000.0, 15_700.0, 15_850.0, 16_000.0, 19_000.0])
+    r = mic.codec_response_db(f, cutoff_hz=16_000.0, edge_hz=300.0, floor_db=-70.0)
+    assert r[0] == 0.0 and r[1] == pytest.approx(0.0, abs=1e-9)             # below the edge: untouched
+    floor = 10 ** (-70 / 20)
+    assert r[2] == pytest.approx(20 * np.log10(floor + (1 - floor) * 0.5), abs=1e-9)   # mid-edge: half amplitude
+    assert r[3] == pytest.approx(-70.0, abs=1e-9) and r[4] == pytest.approx(-70.0, abs=1e-9)
+    x = 0.02 * np.random.default_rng(1).standard_normal(FS)
+    on = mic.record(x, FS, seed=2, full_scale_pa=1.0, config=_flat(agc=False, codec_probability=1.0,
+                                                                   codec_cutoff_hz=(12_000.0, 12_000.0)))
+    off = mic.record(x, FS, seed=2, full_scale_pa=1.0, config=_flat(agc=False, codec_probability=0.0))
+    spec_on, spec_off = (np.abs(np.fft.rfft(y.astype(np.float64))) ** 2 for y in (on, off))
+    fr = np.fft.rfftfreq(FS, 1 / FS)
+    above, below = (fr > 13_000) & (fr < 20_000), (fr > 2_000) & (fr < 10_000)
+    assert 10 * np.log10(spec_on[above].sum() / spec_off[above].sum()) < -40     # cut (16-bit floor remains)
+    assert 10 * np.log10(spec_on[below].sum() / spec_off[below].sum()) == pytest.approx(0.0, abs=0.1)
+    with pytest.raises(ValueError, match="codec_cutoff_hz"):
+        mic.RecorderConfig(codec_cutoff_hz=(50.0, 60.0))
+
+
+def test_gate_lowers_only_what_falls_under_its_threshold():
+    t = np.arange(2 * FS) / FS
+    tone = np.sin(2 * np.pi * 1000 * t) * np.sqrt(2)                     # rms 1
+    quiet = tone * 10 ** (-50 / 20) * (t >= 1.0) + tone * 10 ** (-20 / 20) * (t < 1.0)
+    g = mic.gate_gain(quiet, FS, threshold_dbfs=-40.0, ratio=3.0, range_db=-15.0, release_s=0.05)
+    assert 20 * np.log10(g[int(0.9 * FS)]) == pytest.approx(0.0, abs=1e-6)    # -20 dBFS: over the threshold
+    assert 20 * np.log10(g[int(1.9 * FS)]) == pytest.approx(-15.0, abs=0.05)  # -50: 2 x 10 dB = 20, held at range
+    soft = mic.gate_gain(tone * 10 ** (-45 / 20), FS, threshold_dbfs=-40.0, ratio=2.0, range_db=-30.0, release_s=0.05)
+    assert 20 * np.log10(soft[FS]) == pytest.approx(-5.0, abs=0.05)            # (ratio - 1) x 5 dB under
+    cfg = _flat(agc=False, gate_probability=1.0, gate_threshold_dbfs=(-40.0, -40.0), gate_ratio=(3.0, 3.0),
+                gate_range_db=(-15.0, -15.0), gate_release_s=(0.05, 0.05))
+    y = mic.record(quiet, FS, seed=0, full_scale_pa=1.0, config=cfg)
+    tail = 20 * np.log10(np.sqrt(np.mean(y[int(1.5 * FS):].astype(np.float64) ** 2)))
+    assert tail == pytest.approx(-65.0, abs=0.3)

@@ -1,6 +1,7 @@
 """The sim2real audio track: statistics on hand-made signals, synthetic clips, the quick track."""
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
@@ -172,3 +173,27 @@ def test_real_audio_clips_from_a_benchmark_reader():
     clips = A.real_audio_clips(Bench())
     assert [(c.name, c.cls, c.half, round(float(c.samples[0]), 6)) for c in clips] == [
         ("DRONE_001", "DRONE", "calibration", 0.5), ("BACKGROUND_004", "BACKGROUND", "evaluation", 0.1)]
+
+
+def test_audio_only_protocol_renders_no_video(tmp_path):
+    pytest.importorskip("mcos_decoder")
+    pytest.importorskip("av")
+    import subprocess
+    import sys
+
+    from evids.experiments.sim2real.config import DEFAULT_CONFIG
+    from tests.simulator.formats.svanstrom_miniature import write_miniature
+
+    real = write_miniature(tmp_path / "real", numbers=(1, 2, 3, 4), n_frames=4, ir_size=(64, 48),
+                           visible_size=(96, 80), audio_s=2.0)
+    text = DEFAULT_CONFIG.read_text().replace("sensors: [ir, visible, audio]", "sensors: [audio]")
+    assert "sensors: [audio]" in text
+    config = tmp_path / "audio_only.yaml"          # its scenario paths are never opened: no video classes run
+    config.write_text(text)
+    proc = subprocess.run([sys.executable, "-c", "from evids.cli import main; main()", "sim2real", "--real",
+                           str(real), "--config", str(config), "--out", str(tmp_path / "run"), "--quick",
+                           "--no-progress"], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert not (tmp_path / "run" / "synthetic").exists()                   # no video rendered
+    summary = json.loads((tmp_path / "run" / "sim2real.json").read_text())
+    assert list(summary["sensors"]) == ["audio"] and summary["sensors"]["audio"]["n_clips"]["evaluation"] > 0
