@@ -228,6 +228,9 @@ class CameraIntrinsics(_Model):
     height_px: int = Field(default=512, ge=16, le=4096)
     hfov_deg: float = Field(default=30.0, gt=0.1, lt=170.0)
     spp: int = Field(default=4, ge=1, le=1024, description="samples per pixel of the radiance pass")
+    label_margin_px: tuple[Annotated[int, Field(ge=0, le=256)], Annotated[int, Field(ge=0, le=256)]] = Field(
+        default=(0, 0), description="[x, y] pixels added on each side of every label box (clipped to the frame), as "
+                                    "human annotators draw boxes; the exact box stays in box_tight. (0, 0) = exact")
 
 
 class RgbCamera(CameraIntrinsics):
@@ -287,6 +290,9 @@ class ThermalCamera(CameraIntrinsics):
     agc_base_sigma_px: float = Field(default=0.0, ge=0.0, le=200.0,
                                      description="plateau: local contrast, Gaussian base (0 = off)")
     agc_base_gain: float = Field(default=1.0, ge=0.0, le=1.0, description="plateau: gain of the base about its mean")
+    agc_gamma: float = Field(default=1.0, ge=0.25, le=4.0,
+                             description="plateau: gamma on the transfer (FLIR ACE; > 1: more grey levels for hot "
+                                         "content, darker sky; 1 = off)")
 
     @model_validator(mode="after")
     def _counts_cover_scene(self) -> "ThermalCamera":

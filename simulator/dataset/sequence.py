@@ -21,7 +21,7 @@ from simulator.files import (
 )
 from simulator.formats.native import FORMAT_VERSION, frame_name, write_json, write_png
 from simulator.physics.timeline import Timeline, build_timeline
-from simulator.render.labels import CLASS_OF_KIND, coverage_labels
+from simulator.render.labels import CLASS_OF_KIND, coverage_labels, pad_labels
 from simulator.sensors.camera import CameraModel
 from simulator.sensors.encode import rgb_to_srgb8
 
@@ -185,10 +185,13 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
                 t0 = times.add("camera model", t0)
                 frames.append({
                     "index": i, "time_s": round(float(timeline.times_s[i]), 6),
-                    "rgb": coverage_labels(timeline, i, "rgb", buffers.coverage["rgb"], rgb_cam.width_px,
-                                           rgb_cam.height_px),
-                    "thermal": coverage_labels(timeline, i, "thermal", buffers.coverage["thermal"], th_cam.width_px,
-                                               th_cam.height_px, netd),
+                    "rgb": pad_labels(coverage_labels(timeline, i, "rgb", buffers.coverage["rgb"], rgb_cam.width_px,
+                                                      rgb_cam.height_px),
+                                      scenario.camera_rig.rgb.label_margin_px, rgb_cam.width_px, rgb_cam.height_px),
+                    "thermal": pad_labels(coverage_labels(timeline, i, "thermal", buffers.coverage["thermal"],
+                                                          th_cam.width_px, th_cam.height_px, netd),
+                                          scenario.camera_rig.thermal.label_margin_px, th_cam.width_px,
+                                          th_cam.height_px),
                 })
                 t0 = times.add("labels", t0)
                 writer.submit(i, recorded, buffers)

@@ -84,6 +84,27 @@ def frame_labels(timeline: Timeline, frame: int, camera: str, id_mask: np.ndarra
     return records
 
 
+def pad_labels(records: list[dict], margin_px: tuple[int, int], width: int, height: int) -> list[dict]:
+    """Records with every box grown by ``margin_px`` = [x, y] pixels on each side and clipped to the
+    frame, the way human annotators draw boxes around small targets. The exact box is kept in
+    ``box_tight``; ``truncated`` still says whether the target itself touches the frame edge.
+    (0, 0) returns the records as they are."""
+    mx, my = int(margin_px[0]), int(margin_px[1])
+    if mx == 0 and my == 0:
+        return records
+    out = []
+    for rec in records:
+        rec = dict(rec)
+        box = rec["box"]
+        rec["box_tight"] = list(box)
+        if box:
+            x0, y0 = max(0, box[0] - mx), max(0, box[1] - my)
+            x1, y1 = min(width, box[0] + box[2] + mx), min(height, box[1] + box[3] + my)
+            rec["box"] = [x0, y0, x1 - x0, y1 - y0]
+        out.append(rec)
+    return out
+
+
 def _box_of_coverage(cov) -> list[int] | None:
     """[x, y, w, h] of the pixels with any coverage (full-frame coordinates), None if none."""
     box = tight_box(cov.coverage > 0)

@@ -12,7 +12,9 @@
   cores' local-contrast step (FLIR's digital detail enhancement acts on the equalised modes): the
   counts' Gaussian low-pass (``base_sigma_px``) is scaled by ``base_gain`` about its frame mean and
   the detail added back, so a slow sky gradient flattens to mid-grey while a hot ground leaves the
-  dark halo above the horizon that the real clips show.
+  dark halo above the horizon that the real clips show. Last, an optional gamma on the transfer
+  (FLIR's "active contrast enhancement", ACE, same application note: gamma > 1 gives more grey
+  levels to the hotter scene content and darkens the cold sky).
 - Visible: **auto-exposure** metered over the whole frame (mean linear luminance driven to a key,
   damped in log exposure over frames) and a **camcorder tone curve**: the ITU-R BT.709 opto-
   electronic transfer function with a highlight knee (above ``knee_point`` of the output the slope
@@ -72,6 +74,7 @@ class PlateauAgc:
     damping: float
     base_sigma_px: float = 0.0
     base_gain: float = 1.0
+    gamma: float = 1.0
     _transfer: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -110,7 +113,8 @@ class PlateauAgc:
             self._transfer = raw
         else:
             self._transfer = self.damping * self._transfer + (1.0 - self.damping) * raw
-        lut = np.rint(self._transfer * 255.0).astype(np.uint8)
+        shown = self._transfer if self.gamma == 1.0 else self._transfer ** self.gamma   # ACE: hot content gets more
+        lut = np.rint(shown * 255.0).astype(np.uint8)
         return lut[binned].reshape(counts.shape)
 
 

@@ -104,3 +104,17 @@ def test_local_contrast_flattens_a_slow_gradient_and_keeps_the_detail():
     assert flat[60:62, 80:82].mean() - np.median(flat[50:72, 70:92]) > 150                  # the target stays
     kept = PlateauAgc(0.01, 0.05, 0.005, 0.5, 0.005, 4.0, 0.0, base_sigma_px=15.0, base_gain=1.0)
     assert np.abs(kept.local_contrast(counts).astype(int) - counts).max() <= 1              # gain 1 = identity
+
+
+def test_gamma_darkens_the_sky_and_keeps_black_and_white():
+    """ACE gamma > 1: the transfer's mid levels go down (the sky darkens), its ends stay at 0 and 255."""
+    rng = np.random.default_rng(1)
+    counts = (28000 + 60 * rng.standard_normal((64, 80))).astype(np.uint16)     # sky, 0.6 K noise
+    counts[40:, :] += 1500                                                       # warm ground, 15 K
+    counts[10, 10] = 31000                                                       # a hot target
+    args = (0.01, 0.05, 0.005, 0.5, 0.0, 4.0, 0.0)
+    plain, ace = PlateauAgc(*args)(counts).astype(int), PlateauAgc(*args, gamma=1.5)(counts).astype(int)
+    sky = np.s_[20:30, :]
+    assert np.median(ace[sky]) < np.median(plain[sky]) - 10
+    assert ace[10, 10] == plain[10, 10] == 255
+    assert ace.min() == plain.min() == 0
