@@ -29,7 +29,7 @@ CONDITIONS = {"a_real": "(a) real calibration half", "b_synthetic": "(b) synthet
               "c_both": "(c) real calibration half + synthetic"}
 SEVERITIES = (1.0, 2.0, 3.0, 4.0, 5.0)
 QUICK_SEVERITIES = (5.0,)
-STEPS, QUICK_STEPS = 400, 15
+STEPS, QUICK_STEPS = 300, 15
 BATCH, LEARNING_RATE = 128, 2e-3
 BOOT, QUICK_BOOT = 1000, 40
 SENSOR_INDEX = {"ir": 0, "visible": 1, "audio": 2}
@@ -325,6 +325,7 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
                                                   context=vis.crop_context, workers=vis.workers, progress=progress)
         summary["timings_s"][sensor] = time.time() - t
         log(f"[realbench] {sensor} done in {summary['timings_s'][sensor]:.0f} s")
+        _write_partial(out, summary)
     if audio:
         t = time.time()
         real_clips = s2r_audio.real_audio_clips(bench)
@@ -334,12 +335,21 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
                                                       n_boot=n_boot, seed=cfg.seed, workers=vis.workers,
                                                       progress=progress)
         summary["timings_s"]["audio"] = time.time() - t
+        log(f"[realbench] audio done in {summary['timings_s']['audio']:.0f} s")
     bench.close()
     summary["timings_s"]["total"] = time.time() - t0
     examples = {s: r.pop("examples", None) for s, r in summary["sensors"].items()}
     write_page(out, summary, examples)
     write_json(out / "realbench.json", summary)
     return summary
+
+
+def _write_partial(out: Path, summary: dict[str, Any]) -> None:
+    """realbench.json so far (a later failure keeps the finished sensors), without the example crops."""
+    from evids.runfolder import write_json
+
+    write_json(out / "realbench.json", {**summary, "sensors": {s: {k: v for k, v in r.items() if k != "examples"}
+                                                               for s, r in summary["sensors"].items()}})
 
 
 def format_table(summary: dict[str, Any]) -> str:
