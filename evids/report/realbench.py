@@ -57,8 +57,9 @@ def agreement_figure(summary: dict[str, Any]) -> bytes | None:
             if mask.any():
                 ax.errorbar(xs[mask], ys[mask], xerr=np.nan_to_num(xe[:, mask]), yerr=np.nan_to_num(ye[:, mask]),
                             fmt="o", ms=4, color=colour, ecolor="0.7", lw=0.8, label=lab)
-        lo = float(np.nanmin(np.r_[xs, ys, 0.0])) - 2
-        hi = float(np.nanmax(np.r_[xs, ys, 1.0])) + 2
+        ends = np.r_[xs - np.nan_to_num(xe[0]), ys - np.nan_to_num(ye[0]), xs + np.nan_to_num(xe[1]),
+                     ys + np.nan_to_num(ye[1]), 0.0, 1.0]
+        lo, hi = float(np.nanmin(ends)) - 2, float(np.nanmax(ends)) + 2
         ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="identity")
         rho = res["spearman"]
         ax.set_title(f"{sensor}: Spearman {rho['estimate']:.2f}", fontsize=10)
