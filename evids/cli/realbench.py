@@ -14,6 +14,14 @@ def realbench(
     out: Path = typer.Option(Path("out/realbench"), "--out", "-o", help="Run folder (created)."),
     quick: bool = typer.Option(False, "--quick", help="Toy scale (few steps, one severity) for tests."),
     audio: bool = typer.Option(True, "--audio/--no-audio", help="Include the audio track."),
+    visual: str = typer.Option("ir,visible", "--visual", help="Visual sensors, comma-separated ('' for none)."),
+    seeds: int = typer.Option(None, "--seeds", min=1, help="Use the first N training seeds of the protocol "
+                              "(default: all)."),
+    severities: str = typer.Option(None, "--severities", help="Comma-separated severities in (0, 5] "
+                                   "(default 1,2,3,4,5; --quick: 5)."),
+    steps: int = typer.Option(None, "--steps", min=1, help="Training steps per model (default 300; --quick 15)."),
+    audio_clips: int = typer.Option(None, "--audio-clips-per-class", min=2, help="Synthetic audio clips per class "
+                                    "(default: the protocol's)."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
 ) -> None:
     """Train the softmax and evidential classifiers per sensor (IR crops, visible crops, audio windows) on
@@ -29,13 +37,25 @@ def realbench(
     from scenes.errors import UserInputError
     from simulator.files import DatasetLock
 
+    sensors = tuple(v.strip() for v in visual.split(",") if v.strip())
+    bad = [v for v in sensors if v not in ("ir", "visible")]
+    if bad:
+        raise UserInputError(f"--visual: unknown sensor(s) {bad}; expected ir, visible")
+    try:
+        sev = tuple(float(v) for v in severities.split(",")) if severities else None
+    except ValueError:
+        raise UserInputError(f"--severities: {severities!r} is not a comma-separated list of numbers") from None
+    if sev is not None and not all(0.0 < v <= 5.0 for v in sev):
+        raise UserInputError(f"--severities: every severity must lie in (0, 5], got {list(sev)}")
     if not real.exists():
         raise UserInputError(f"--real: {str(real)!r} does not exist")
     if not (sim2real / "sim2real.json").is_file():
         raise UserInputError(f"--sim2real: {str(sim2real)!r} holds no sim2real.json (run `evids sim2real` first)")
     create_run_folder(out, inputs=[real, sim2real])
     with DatasetLock(out, "realbench"):
-        summary = run_realbench(real, sim2real, out, quick=quick, audio=audio, progress=progress, log=typer.echo)
+        summary = run_realbench(real, sim2real, out, quick=quick, audio=audio, visual=sensors, n_seeds=seeds,
+                                severities=sev, steps=steps, audio_clips_per_class=audio_clips, progress=progress,
+                                log=typer.echo)
     typer.echo(format_table(summary))
     typer.echo(f"report: {out / 'realbench.html'}")
 

@@ -264,7 +264,10 @@ def audio_track(real_clips: list, synthetic_clips: list, *, seeds: list[int], st
 
 
 def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = False, audio: bool = True,
-                  progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
+                  visual: tuple[str, ...] = ("ir", "visible"), n_seeds: int | None = None,
+                  severities: tuple[float, ...] | None = None, steps: int | None = None,
+                  audio_clips_per_class: int | None = None, progress: bool = True,
+                  log: Callable[[str], None] = print) -> dict[str, Any]:
     """The whole track into ``out`` (see the module docstring); returns the summary."""
     from evids.experiments.pipeline import forked_map
     from evids.experiments.sim2real import audio as s2r_audio
@@ -281,9 +284,9 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
         raise UserInputError(f"--sim2real: {str(sim2real_dir)!r} holds no sim2real.json (run `evids sim2real` first)")
     cfg = Sim2RealConfig(**json.loads(run_json.read_text())["config"])
     vis, tr = cfg.visual, cfg.training
-    seeds, classes = list(tr.seeds), list(vis.classes)
-    steps = QUICK_STEPS if quick else STEPS
-    severities = QUICK_SEVERITIES if quick else SEVERITIES
+    seeds, classes = list(tr.seeds)[:n_seeds], list(vis.classes)
+    steps = steps or (QUICK_STEPS if quick else STEPS)
+    severities = severities or (QUICK_SEVERITIES if quick else SEVERITIES)
     n_boot = QUICK_BOOT if quick else BOOT
     cache = out / "cache" / "real_samples.pkl"
     if not cache.exists() and (sim2real_dir / "cache" / "real_samples.pkl").is_file():
@@ -291,12 +294,13 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
         shutil.copyfile(sim2real_dir / "cache" / "real_samples.pkl", cache)
     bench = open_benchmark(real)
     summary: dict[str, Any] = {"real": bench.where, "sim2real_run": str(sim2real_dir), "quick": quick,
+                               "audio_clips_per_class": audio_clips_per_class,
                                "seeds": seeds, "train_steps": steps, "severities": list(severities),
                                "bootstrap": n_boot, "sensors": {}, "timings_s": {},
                                "split_rule": "real: odd clip numbers = calibration half (train), even = evaluation "
                                              "half (reported); synthetic sequences and audio clips: odd = training, "
                                              "even = evaluation"}
-    sensors = [s for s in cfg.sensors if s in VISUAL_SENSORS]
+    sensors = [s for s in cfg.sensors if s in VISUAL_SENSORS and s in visual]
     params = dict(frames_per_clip=vis.frames_per_real_clip, crop_px=vis.crop_px, context=vis.crop_context,
                   min_crop_px=vis.min_crop_px, seed=cfg.seed, keep=vis.detector_frames_per_clip)
     samples: list = []
@@ -330,7 +334,7 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
         t = time.time()
         real_clips = s2r_audio.real_audio_clips(bench)
         if real_clips:
-            syn = s2r_audio.synthetic_audio_clips(cfg.audio, cfg.seed, quick=quick)
+            syn = s2r_audio.synthetic_audio_clips(cfg.audio, cfg.seed, audio_clips_per_class, quick=quick)
             summary["sensors"]["audio"] = audio_track(real_clips, syn, seeds=seeds, steps=steps, severities=severities,
                                                       n_boot=n_boot, seed=cfg.seed, workers=vis.workers,
                                                       progress=progress)
