@@ -288,10 +288,6 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
     steps = steps or (QUICK_STEPS if quick else STEPS)
     severities = severities or (QUICK_SEVERITIES if quick else SEVERITIES)
     n_boot = QUICK_BOOT if quick else BOOT
-    cache = out / "cache" / "real_samples.pkl"
-    if not cache.exists() and (sim2real_dir / "cache" / "real_samples.pkl").is_file():
-        cache.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(sim2real_dir / "cache" / "real_samples.pkl", cache)
     bench = open_benchmark(real)
     summary: dict[str, Any] = {"real": bench.where, "sim2real_run": str(sim2real_dir), "quick": quick,
                                "audio_clips_per_class": audio_clips_per_class,
@@ -306,6 +302,10 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
     samples: list = []
     if sensors:
         t = time.time()
+        cache = out / "cache" / "real_samples.pkl"
+        if not cache.exists() and (sim2real_dir / "cache" / "real_samples.pkl").is_file():
+            cache.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(sim2real_dir / "cache" / "real_samples.pkl", cache)
         calls = [(clip, params) for s in sensors for clip in bench.clips(s, classes=classes)]
         for got, _, err in _cached_real_samples(out, bench, calls, vis.workers, progress).values():
             if err is None:
