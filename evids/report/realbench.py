@@ -128,6 +128,12 @@ def _sensor(sensor: str, res: dict[str, Any]) -> str:
         if not sw:
             continue
         parts.append(f"<h4>Sweep agreement, {title} (evidential head)</h4>")
+        ref = res["sweep"].get("clean_balanced_accuracy", {})
+        cr, cs = ("a_real", "b_synthetic") if run == "own_domain" else ("c_both", "c_both")
+        if ref:
+            parts.append("<p class='note'>Clean balanced accuracy, the reference of every drop: real "
+                         f"{_ci(ref.get('real', {}).get(cr, {}).get('evidential'))}, synthetic "
+                         f"{_ci(ref.get('synthetic', {}).get(cs, {}).get('evidential'))}.</p>")
         parts.append(_table(["Spearman of drops", "median |drop real - drop synthetic| (points)",
                              "same-sign vacuity change", "cells"],
                             [[_ci(sw["spearman"]), _ci(sw["median_abs_drop_difference_points"], digits=1),

@@ -134,6 +134,7 @@ def _evaluate(preds: dict, y: dict[str, np.ndarray], clip: dict[str, np.ndarray]
                                 rng=rng_for(seed, "sim2real", _TAG, 90, SENSOR_INDEX[sensor]))
     # sweep: per-clip sums of correct predictions and vacuity, per domain and model condition
     effects: dict[str, dict[str, dict[str, Any]]] = {}
+    clean: dict[str, dict[str, dict[str, Any]]] = {}
     for domain in ("real", "synthetic"):
         w = None
         for c in present:
@@ -147,13 +148,17 @@ def _evaluate(preds: dict, y: dict[str, np.ndarray], clip: dict[str, np.ndarray]
                 w = table.weights(rng_for(seed, "sim2real", _TAG, 91 + ("real", "synthetic").index(domain),
                                           SENSOR_INDEX[sensor]), n_boot)
             effects.setdefault(domain, {})[c] = stats.sweep_effects(table, "clean", w)
+            for h in M.HEADS:     # the reference every drop is taken from
+                acc = table.balanced_accuracy(w, h)[:, cells.index("clean")]
+                clean.setdefault(domain, {}).setdefault(c, {})[h] = stats.interval(float(acc[0]), acc[1:])
     degraded = [c for c in cells if c != "clean"]
     idx = [cells.index(c) for c in degraded]
 
     def pick(e: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         return {k: v[:, idx] for k, v in e.items()}
 
-    sweep: dict[str, Any] = {"cells": degraded, "labels": {c: labels[c] for c in degraded}}
+    sweep: dict[str, Any] = {"cells": degraded, "labels": {c: labels[c] for c in degraded},
+                             "clean_balanced_accuracy": clean}
     runs = {"own_domain": ("a_real", "b_synthetic"), "mixed": ("c_both", "c_both")}
     for name, (cr, cs) in runs.items():
         if cr not in effects["real"] or cs not in effects["synthetic"]:

@@ -49,7 +49,8 @@ def metrics_of(y: np.ndarray, probs: list[np.ndarray], vac: list[np.ndarray] | N
     return {m: float(np.nanmean(v)) if np.isfinite(v).any() else float("nan") for m, v in rows.items()}
 
 
-def _interval(est: float, boot: np.ndarray) -> dict[str, float]:
+def interval(est: float, boot: np.ndarray) -> dict[str, float]:
+    """Estimate with the 2.5 / 97.5 % percentiles of its finite bootstrap values."""
     b = boot[np.isfinite(boot)]
     if b.size < 3 or not np.isfinite(est):
         return {"estimate": est, "ci_low": float("nan"), "ci_high": float("nan")}
@@ -58,7 +59,7 @@ def _interval(est: float, boot: np.ndarray) -> dict[str, float]:
 
 
 def _diff(est: float, boot: np.ndarray) -> dict[str, float]:
-    d = _interval(est, boot)
+    d = interval(est, boot)
     b = boot[np.isfinite(boot)]
     d["mde"] = float(Z_MDE * b.std(ddof=1)) if b.size > 2 else float("nan")
     return d
@@ -76,7 +77,7 @@ def score_models(y: np.ndarray, clip: np.ndarray, models: dict[str, tuple[list[n
             r = metrics_of(y[idx], [q[idx] for q in p], None if v is None else [u[idx] for u in v])
             for m in METRICS:
                 boot[k][m][b] = r[m]
-    out: dict[str, Any] = {"models": {k: {m: _interval(est[k][m], boot[k][m]) for m in METRICS} for k in models},
+    out: dict[str, Any] = {"models": {k: {m: interval(est[k][m], boot[k][m]) for m in METRICS} for k in models},
                            "differences": {}}
     for name, (a, c) in pairs.items():
         if a in models and c in models:
@@ -156,20 +157,20 @@ def agreement(real: dict[str, np.ndarray], synthetic: dict[str, np.ndarray], cel
     rho = np.array([spearmanr(dr[b], ds[b]).statistic if np.ptp(dr[b]) > 0 and np.ptp(ds[b]) > 0 else np.nan
                     for b in range(n)])
     med = np.median(np.abs(dr[:n] - ds[:n]), axis=1)
-    out: dict[str, Any] = {"n_cells": len(cells), "spearman": _interval(float(rho[0]), rho[1:]),
-                           "median_abs_drop_difference_points": _interval(float(med[0]), med[1:])}
+    out: dict[str, Any] = {"n_cells": len(cells), "spearman": interval(float(rho[0]), rho[1:]),
+                           "median_abs_drop_difference_points": interval(float(med[0]), med[1:])}
     if vr is not None and vs is not None:
         same = np.mean(np.sign(vr[:n]) == np.sign(vs[:n]), axis=1)
-        out["vacuity_same_sign_fraction"] = _interval(float(same[0]), same[1:])
+        out["vacuity_same_sign_fraction"] = interval(float(same[0]), same[1:])
     cells_out = []
     for j, cell in enumerate(cells):
         d = _diff(float(dr[0, j] - ds[0, j]), dr[1:n, j] - ds[1:n, j])
-        row = {"cell": cell, "label": labels.get(cell, cell), "drop_real": _interval(float(dr[0, j]), dr[1:, j]),
-               "drop_synthetic": _interval(float(ds[0, j]), ds[1:, j]), "drop_difference": d,
+        row = {"cell": cell, "label": labels.get(cell, cell), "drop_real": interval(float(dr[0, j]), dr[1:, j]),
+               "drop_synthetic": interval(float(ds[0, j]), ds[1:, j]), "drop_difference": d,
                "disagree": bool(np.isfinite(d["ci_low"]) and (d["ci_low"] > 0 or d["ci_high"] < 0))}
         if vr is not None and vs is not None:
-            row["vacuity_change_real"] = _interval(float(vr[0, j]), vr[1:, j])
-            row["vacuity_change_synthetic"] = _interval(float(vs[0, j]), vs[1:, j])
+            row["vacuity_change_real"] = interval(float(vr[0, j]), vr[1:, j])
+            row["vacuity_change_synthetic"] = interval(float(vs[0, j]), vs[1:, j])
         cells_out.append(row)
     out["cells"] = cells_out
     out["disagreeing_cells"] = [r["label"] for r in cells_out if r["disagree"]]
@@ -185,7 +186,7 @@ def inert(effects: dict[str, np.ndarray], cells: list[str], top: dict[str, str])
         zero = []
         for key in ("drop_points", "vacuity_change"):
             if key in effects:
-                r = _interval(float(effects[key][0, j]), effects[key][1:, j])
+                r = interval(float(effects[key][0, j]), effects[key][1:, j])
                 zero.append(r["ci_low"] <= 0.0 <= r["ci_high"])
         if zero and all(zero):
             out.append(deg)

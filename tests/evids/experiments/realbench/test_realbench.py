@@ -88,12 +88,15 @@ def test_quick_run_writes_scores_sweep_and_page(quick_run):
             assert 0.0 <= m["ece"]["estimate"] <= 1.0
             if key.endswith("softmax"):
                 assert m["uauc_vacuity"]["estimate"] is None       # no vacuity: NaN, written as null
+        ref = res["sweep"]["clean_balanced_accuracy"]
+        assert 0.0 <= ref["synthetic"]["b_synthetic"]["evidential"]["estimate"] <= 1.0
         sweep = res["sweep"]["own_domain"]["evidential"]
         assert sweep["n_cells"] == len(SPECS[sensor])                   # one severity in --quick
         assert len(sweep["cells"]) == sweep["n_cells"]
         assert set(sweep["disagreeing_cells"]) <= {c["label"] for c in sweep["cells"]}
     page = (out / "realbench.html").read_text()
     assert "Real benchmark" in page and "data:image/png;base64" in page and "Disagreeing cells" in page
+    assert "Clean balanced accuracy" in page
     assert (out / "realbench_agreement.png").stat().st_size > 1000
     assert "sweep agreement (own_domain" in proc.stdout
 
