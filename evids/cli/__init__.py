@@ -63,6 +63,7 @@ def _register_all() -> None:
     from evids.cli import detect as detect_cli
     from evids.cli import experiments as experiments_cli
     from evids.cli import generate as generate_cli
+    from evids.cli import realbench as realbench_cli
     from evids.cli import render as render_cli
     from evids.cli import sim2real as sim2real_cli
 
@@ -72,6 +73,7 @@ def _register_all() -> None:
     experiments_cli.register(app)
     detect_cli.register(app)
     sim2real_cli.register(app)
+    realbench_cli.register(app)
 
 
 def main(argv: list[str] | None = None) -> None:
