@@ -174,8 +174,10 @@ def test_a_two_node_cluster_survives_a_killed_node_and_resumes_to_the_local_byte
 
     address, env, node_b = two_nodes
     config = write_tiny(tmp_path, sequences=4, frames=2)
+    t0 = time.monotonic()
     reference = tmp_path / "local"
     generate_dataset(config, reference, 5, progress=False)
+    print(f"local reference: {time.monotonic() - t0:.0f} s")  # phase times: shown with -s
     out = tmp_path / "cluster"
     cmd = [sys.executable, "-c", CLUSTER_DRIVER.format(loopback=LOOPBACK), str(config), str(out), address]
     first = subprocess.Popen(cmd, env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -193,6 +195,7 @@ def test_a_two_node_cluster_survives_a_killed_node_and_resumes_to_the_local_byte
                         on_b = pid
             time.sleep(0.05)
         assert on_b is not None, "no sequence was seen rendering on node B before the run ended"
+        print(f"node B seen rendering: {time.monotonic() - t0:.0f} s")
         killed = _kill_node(node_b)
         assert b_raylet in killed and on_b in killed
         log, _ = first.communicate(timeout=300)
@@ -200,12 +203,14 @@ def test_a_two_node_cluster_survives_a_killed_node_and_resumes_to_the_local_byte
         if first.poll() is None:
             first.kill()
             first.wait()
+    print(f"first run failed: {time.monotonic() - t0:.0f} s")
     assert first.returncode != 0 and "GenerationFailed" in log, log[-2000:]
     manifest = load_manifest(out)
     assert not manifest["complete"]
     done = [p.name for p in (out / "sequences").iterdir() if not p.name.startswith(".")]
     assert len(done) < 4
     resumed = subprocess.run(cmd, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    print(f"resumed: {time.monotonic() - t0:.0f} s")
     assert resumed.returncode == 0, resumed.stdout[-2000:] + resumed.stderr[-2000:]
     assert load_manifest(out)["complete"]
     assert tree_digest(out) == tree_digest(reference)
