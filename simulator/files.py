@@ -14,6 +14,8 @@ import re
 import secrets
 import shutil
 import socket
+import threading
+import time
 from contextlib import contextmanager
 from functools import lru_cache
 from importlib import metadata
@@ -102,8 +104,10 @@ def verify_hashes(folder: Path) -> list[str]:
 
 MARKER_FILE = ".evids-output.json"
 LOCK_FILE = ".evids.lock"
+#: the cross-host lease beside the per-host lock (see :class:`DatasetLock`)
+LEASE_FILE = ".evids.lease"
 #: files that are bookkeeping, not content (never hashed, never counted as "user files")
-BOOKKEEPING = (HASH_FILE, MARKER_FILE, LOCK_FILE)
+BOOKKEEPING = (HASH_FILE, MARKER_FILE, LOCK_FILE, LEASE_FILE)
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,127}$")
 
 
@@ -150,7 +154,7 @@ def is_evids_output(folder: Path) -> bool:
     """True if ``folder`` was written by evids: it holds the marker, or it is a native dataset,
     native sequence, TRIDENT set or run folder in the layouts this project writes."""
     folder = Path(folder)
-    if (folder / MARKER_FILE).is_file() or (folder / LOCK_FILE).is_file():
+    if any((folder / name).is_file() for name in (MARKER_FILE, LOCK_FILE, LEASE_FILE)):
         return True
     manifest = folder / "manifest.json"
     if manifest.is_file():
@@ -168,7 +172,7 @@ def is_evids_output(folder: Path) -> bool:
 
 def _is_empty_dir(folder: Path) -> bool:
     """No entries besides evids' own bookkeeping (a lock or marker left by a killed run)."""
-    return folder.is_dir() and not folder.is_symlink() and all(c.name in (LOCK_FILE, MARKER_FILE)
+    return folder.is_dir() and not folder.is_symlink() and all(c.name in BOOKKEEPING[1:]
                                                                for c in folder.iterdir())
 
 
@@ -334,7 +338,7 @@ def copy_tree_no_symlinks(src: Path, dst: Path, *, skip: Iterable[str] = ()) -> 
                 raise UserInputError(f"{path}: is a symbolic link; evids does not follow links in an input folder")
         (dst / rel).mkdir(parents=True, exist_ok=True)
         for name in files:
-            if (rel / name).as_posix() in skip or name in (MARKER_FILE, LOCK_FILE):
+            if (rel / name).as_posix() in skip or name in BOOKKEEPING[1:]:
                 continue
             shutil.copy2(Path(root) / name, dst / rel / name, follow_symlinks=False)
 
@@ -343,21 +347,41 @@ def copy_tree_no_symlinks(src: Path, dst: Path, *, skip: Iterable[str] = ()) -> 
 # Dataset lock: one writer per dataset folder
 # --------------------------------------------------------------------------------------------
 
-class DatasetLock:
-    """Exclusive lock on a dataset folder: ``DIR/.evids.lock`` holding pid, host and run id, kept
-    with an OS-level ``flock`` for the lifetime of the run (released when the process dies, even by
-    SIGKILL). A second writer refuses with the holder's pid/host; a lock file left by a dead run is
-    detected, reported in ``stale`` and taken over."""
+#: seconds a dataset lease lasts without renewal; the holder renews it every third of that
+LEASE_S = 60.0
 
-    def __init__(self, folder: Path, purpose: str = "write", *, required: bool = True):
+
+class DatasetLock:
+    """Exclusive lock on a dataset folder, on one host and across hosts that share the folder.
+
+    - Across hosts: ``DIR/.evids.lease`` (owner host, pid, run id, ``expires_unix``), created
+      exclusively (``O_EXCL``: atomic on local disks and on NFSv3+), renewed every ``lease_s / 3`` by
+      a daemon thread while the run lives and removed on release. Another host's lease that has not
+      expired refuses the run (naming host, pid and expiry); an expired one (its host died, hung or
+      lost the folder), or one of this host whose pid is dead, is taken over and reported in
+      ``stale``. Hosts' clocks must agree to well within ``lease_s``.
+    - Per host: ``DIR/.evids.lock`` (pid, host, run id) kept with an OS-level ``flock`` for the
+      run's lifetime (released when the process dies, even by SIGKILL); a lock file left by a dead
+      run is reported in ``stale`` and taken over.
+    """
+
+    def __init__(self, folder: Path, purpose: str = "write", *, required: bool = True, lease_s: float = LEASE_S):
         """``required=False`` (readers such as export): a folder where no lock file can be created
         (read-only media) is used unlocked, since no writer can change it either."""
+        if not lease_s > 0:
+            raise ValueError(f"lease_s must be > 0, got {lease_s}")
         self.required = required
         self.folder = Path(folder)
         self.path = self.folder / LOCK_FILE
+        self.lease_path = self.folder / LEASE_FILE
         self.purpose = purpose
+        self.lease_s = float(lease_s)
         self.stale: dict | None = None
+        #: set when another run took the lease from this one (this run stalled past its expiry)
+        self.lost = False
         self._fd: int | None = None
+        self._lease: dict | None = None
+        self._stop: threading.Event | None = None
 
     def acquire(self) -> "DatasetLock":
         import fcntl
@@ -366,32 +390,140 @@ class DatasetLock:
 
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            self._take_lease()
         except OSError:
             if self.required:
                 raise
             return self
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = _read_lock(fd)
-            os.close(fd)
-            raise UserInputError(
-                f"{self.folder} is locked by another evids run (pid {holder.get('pid', '?')} on host "
-                f"{holder.get('host', '?')}, {holder.get('purpose', 'write')}); wait for it to finish") from None
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = _read_lock(fd)
+                os.close(fd)
+                raise UserInputError(
+                    f"{self.folder} is locked by another evids run (pid {holder.get('pid', '?')} on host "
+                    f"{holder.get('host', '?')}, {holder.get('purpose', 'write')}); wait for it to finish") from None
+        except BaseException:
+            self._drop_lease()
+            raise
         previous = _read_lock(fd)
-        if previous:
+        if previous and self.stale is None:
             self.stale = previous
         info = {"pid": os.getpid(), "host": socket.gethostname(), "run_id": run_id(), "purpose": self.purpose}
         os.ftruncate(fd, 0)
         os.pwrite(fd, (json.dumps(info, sort_keys=True) + "\n").encode(), 0)
         os.fsync(fd)
         self._fd = fd
+        self._stop = threading.Event()
+        threading.Thread(target=self._renew, args=(self._stop,), name="evids-lease-renewal", daemon=True).start()
         return self
+
+    # -- the lease -----------------------------------------------------------------------------
+
+    def _record(self) -> dict:
+        return {"host": socket.gethostname(), "pid": os.getpid(), "run_id": run_id(), "purpose": self.purpose,
+                "lease_s": self.lease_s, "expires_unix": round(time.time() + self.lease_s, 3)}
+
+    def _expired(self, holder: dict) -> bool:
+        """True when ``holder``'s lease may be taken over: past its expiry, or its pid is dead on this host."""
+        expires = holder.get("expires_unix")
+        if not isinstance(expires, (int, float)):  # unreadable (a renewal being written): judge by its age
+            try:
+                expires = self.lease_path.stat().st_mtime + self.lease_s
+            except FileNotFoundError:
+                return True
+        if time.time() > float(expires):
+            return True
+        pid = holder.get("pid")
+        return holder.get("host") == socket.gethostname() and not (isinstance(pid, int) and pid > 0
+                                                                    and _pid_alive(pid))
+
+    def _take_lease(self) -> None:
+        from scenes.errors import UserInputError
+
+        for _ in range(5):
+            try:
+                fd = os.open(self.lease_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                holder = _read_json(self.lease_path)
+                if holder == {}:  # caught half-way through a renewal: read it again
+                    time.sleep(0.05)
+                    holder = _read_json(self.lease_path)
+                if holder is None:  # released in between
+                    continue
+                if not self._expired(holder):
+                    left = float(holder.get("expires_unix", time.time())) - time.time()
+                    raise UserInputError(
+                        f"{self.folder} is locked by another evids run (pid {holder.get('pid', '?')} on host "
+                        f"{holder.get('host', '?')}, {holder.get('purpose', 'write')}; its lease "
+                        f"{self.lease_path.name} expires in {max(0.0, left):.0f} s unless renewed); wait for it to "
+                        "finish, or for the lease to expire if that host is down") from None
+                # take the dead lease over: move it aside (atomic, so one taker wins), check it is the one
+                # judged dead (not a fresh lease another taker created meanwhile: that one is put back)
+                aside = self.folder / f"{LEASE_FILE}.expired-{run_id()}"
+                try:
+                    os.rename(self.lease_path, aside)
+                except FileNotFoundError:
+                    continue
+                moved = _read_json(aside)
+                if moved != holder:
+                    try:
+                        os.link(aside, self.lease_path)
+                    except FileExistsError:
+                        pass
+                    aside.unlink(missing_ok=True)
+                    continue
+                aside.unlink(missing_ok=True)
+                self.stale = {**holder, "note": "expired lease taken over"}
+                continue
+            record = self._record()
+            with os.fdopen(fd, "w") as f:
+                f.write(json.dumps(record, sort_keys=True) + "\n")
+                f.flush()
+                os.fsync(f.fileno())
+            self._lease = record
+            return
+        raise UserInputError(f"{self.folder}: another run is taking the dataset lease at the same time; try again")
+
+    def _renew(self, stop: threading.Event) -> None:
+        """Push the lease's expiry forward every third of the lease while the run holds it."""
+        while not stop.wait(self.lease_s / 3):
+            self.renew()
+
+    def renew(self) -> bool:
+        """Extend the lease now; False (and ``lost`` set) when another run has taken it over."""
+        if self._lease is None:
+            return False
+        current = _read_json(self.lease_path)
+        if current is not None and current.get("run_id") != self._lease["run_id"] or not self.lease_path.exists():
+            self.lost = True
+            return False
+        self._lease = {**self._lease, "expires_unix": round(time.time() + self.lease_s, 3)}
+        try:
+            with open(self.lease_path, "r+") as f:  # in place: a reader that catches it half-written goes by mtime
+                f.truncate(0)
+                f.write(json.dumps(self._lease, sort_keys=True) + "\n")
+        except FileNotFoundError:
+            self.lost = True
+            return False
+        return True
+
+    def _drop_lease(self) -> None:
+        if self._stop is not None:
+            self._stop.set()
+            self._stop = None
+        if self._lease is not None:
+            current = _read_json(self.lease_path)
+            if current is None or current.get("run_id") == self._lease["run_id"]:
+                self.lease_path.unlink(missing_ok=True)
+            self._lease = None
 
     def release(self) -> None:
         import fcntl
 
+        self._drop_lease()
         if self._fd is None:
             return
         try:
@@ -407,6 +539,19 @@ class DatasetLock:
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def _read_json(path: Path) -> dict | None:
+    """A lease file's record; None when it is gone, {} when it cannot be read (being written)."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return None
+    try:
+        value = json.loads(text)
+    except ValueError:
+        return {}
+    return value if isinstance(value, dict) else {}
 
 
 def _read_lock(fd: int) -> dict:

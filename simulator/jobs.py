@@ -8,7 +8,9 @@ call order) or :func:`iter_jobs` (results as they finish), so that one module ow
   memory, so large inputs are never pickled), ``forkserver`` / ``spawn`` (fresh interpreters:
   safe after threads have started), ``ray`` (a local or remote Ray cluster);
 - die-with-driver: pool workers are killed when the driver dies, even by SIGKILL
-  (:func:`die_with_driver`), so no orphan keeps writing files or holding memory;
+  (:func:`die_with_driver`), so no orphan keeps writing files or holding memory; so are the
+  processes of a local Ray instance the driver started (:func:`reap_when_gone`) and Ray tasks on
+  the driver's host (:func:`_ray_call`);
 - interrupts and failures: Ctrl-C (or any error in the driver) terminates the workers at once and
   starts none of the queued calls; ``on_error="raise"`` stops at the first failed call,
   ``on_error="collect"`` returns a :class:`JobError` in that call's place and goes on;
@@ -23,6 +25,7 @@ its own arguments and the context.
 from __future__ import annotations
 
 import os
+import socket
 import threading
 import time
 from dataclasses import dataclass
@@ -242,17 +245,20 @@ def _ray(fn: Callable, calls: list[tuple], workers: int, on_error: str,
 
         raise UserInputError("--executor ray needs Ray: pip install 'evids[ray]'") from None
     started = False
+    reaper = None
     if not ray.is_initialized():
         kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
         if address:
             kwargs["address"] = address
         else:
             kwargs["num_cpus"] = max(1, workers)
+            reaper = start_reaper()  # before ray.init: every process Ray starts here is new to it
         ray.init(**kwargs)
         started = True
     try:
-        remote = ray.remote(num_cpus=1, max_retries=0)(fn)
-        pending = {remote.remote(*call): i for i, call in enumerate(calls)}
+        remote = ray.remote(num_cpus=1, max_retries=0)(_ray_call)
+        driver = (socket.gethostname(), os.getpid())
+        pending = {remote.remote(driver, fn, *call): i for i, call in enumerate(calls)}
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
             for ref in done:
@@ -267,3 +273,106 @@ def _ray(fn: Callable, calls: list[tuple], workers: int, on_error: str,
     finally:
         if started:
             ray.shutdown()
+        if reaper is not None:
+            reaper.kill()
+            reaper.wait()
+
+
+_RAY_WATCHED: list[int] = []  # the driver pid this Ray worker already watches (a worker serves one job)
+
+
+def _ray_call(driver: tuple[str, int], fn: Callable, *args: Any) -> Any:
+    """One call on a Ray worker. On the driver's host the worker also watches the driver's pid (Ray
+    ends a dead driver's workers itself, through its cluster's job table, within seconds; this makes
+    it one second wherever the driver's pid is visible)."""
+    host, pid = driver
+    if host == socket.gethostname() and pid not in _RAY_WATCHED and _pid_visible(pid):
+        _RAY_WATCHED.append(pid)
+
+        def watchdog() -> None:
+            while _pid_visible(pid):
+                time.sleep(1.0)
+            os._exit(1)
+
+        threading.Thread(target=watchdog, name="evids-driver-watchdog", daemon=True).start()
+    return fn(*args)
+
+
+def _pid_visible(pid: int) -> bool:
+    """``pid`` is a running process here (not gone, not a zombie waiting to be reaped)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rpartition(")")[2].split()[0] != "Z"
+    except OSError:  # no /proc (not Linux), or gone meanwhile
+        return os.path.exists(f"/proc/{pid}") or not os.path.isdir("/proc")
+
+
+def _process_table() -> dict[int, tuple[int, str]]:
+    """pid -> (parent pid, start time in clock ticks) of every process, from /proc (Linux)."""
+    table = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    fields = f.read().rpartition(")")[2].split()
+            except OSError:
+                continue
+            table[int(entry)] = (int(fields[1]), fields[19])
+    return table
+
+
+def descendants(pid: int, table: dict[int, tuple[int, str]] | None = None) -> dict[int, str]:
+    """pid -> start time of every descendant of ``pid`` (Linux /proc; empty elsewhere)."""
+    table = _process_table() if table is None else table
+    children: dict[int, list[int]] = {}
+    for child, (parent, _) in table.items():
+        children.setdefault(parent, []).append(child)
+    out: dict[int, str] = {}
+    stack = [pid]
+    while stack:
+        for child in children.get(stack.pop(), []):
+            if child not in out:
+                out[child] = table[child][1]
+                stack.append(child)
+    return out
+
+
+def reap_when_gone(driver_pid: int, interval_s: float = 0.25) -> None:
+    """Run in a small watcher process: snapshot the driver's descendants (those started after this
+    watcher) every ``interval_s``; when the driver dies, SIGKILL every one of the last snapshot still
+    running under the same start time. Ray's own processes (GCS, raylet, agents, workers) fate-share
+    with a driver that started them, but its agents take up to a minute to notice."""
+    import signal
+
+    me = os.getpid()
+    before = set(descendants(driver_pid))
+    tree: dict[int, str] = {}
+    while _pid_visible(driver_pid):
+        tree = {p: t for p, t in descendants(driver_pid).items() if p != me and p not in before}
+        time.sleep(interval_s)
+    table = _process_table()
+    for pid, started in tree.items():
+        if table.get(pid, (0, ""))[1] == started:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+def start_reaper() -> Any:
+    """Start :func:`reap_when_gone` for this process in a watcher process (Linux; None elsewhere)."""
+    import subprocess
+    import sys
+
+    if not os.path.isdir("/proc"):
+        return None
+    code = f"from simulator.jobs import reap_when_gone; reap_when_gone({os.getpid()})"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+    return subprocess.Popen([sys.executable, "-c", code], env=env, stdin=subprocess.DEVNULL,
+                            stdout=subprocess.DEVNULL, start_new_session=True)

@@ -33,6 +33,7 @@ from simulator.dataset.config import (
 )
 from simulator.files import (
     HASH_FILE,
+    LEASE_FILE,
     LOCK_FILE,
     DatasetLock,
     check_output,
@@ -325,7 +326,7 @@ def _generate_locked(out: Path, config: GenerationConfig, seed: int, tasks: list
                     f"output folder {str(out)!r} holds a different dataset (manifest {MANIFEST} was made from another "
                     "config, seed, --sequences or --frames); use a new --out, or --overwrite to replace it")
             for child in out.iterdir():  # everything but our own lock
-                if child.name != LOCK_FILE:
+                if child.name not in (LOCK_FILE, LEASE_FILE):
                     shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
         else:
             entries = old.get("sequences", [])
