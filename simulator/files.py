@@ -222,14 +222,19 @@ def check_no_overlap(out: Path, inputs: Iterable[Path], flag: str = "--out") -> 
             raise UserInputError(f"{flag} {str(out)!r} {rel} the input {str(inp)!r}; write somewhere else")
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_running(pid: int) -> bool:
+    """``pid`` is a running process here (not gone, not a zombie waiting to be reaped)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
         return True
-    return True
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rpartition(")")[2].split()[0] != "Z"
+    except OSError:  # no /proc (not Linux), or gone meanwhile
+        return os.path.exists(f"/proc/{pid}") or not os.path.isdir("/proc")
 
 
 def clean_dead_temps(parent: Path, name: str | None = None) -> list[Path]:
@@ -243,7 +248,7 @@ def clean_dead_temps(parent: Path, name: str | None = None) -> list[Path]:
         m = _TEMP_RE.match(child.name)
         if not m or (name is not None and m.group("name") != name):
             continue
-        if m.group("host") != _host_tag() or _pid_alive(int(m.group("pid"))):
+        if m.group("host") != _host_tag() or pid_running(int(m.group("pid"))):
             continue
         _remove(child)
         removed.append(child)
@@ -438,7 +443,7 @@ class DatasetLock:
             return True
         pid = holder.get("pid")
         return holder.get("host") == socket.gethostname() and not (isinstance(pid, int) and pid > 0
-                                                                    and _pid_alive(pid))
+                                                                    and pid_running(pid))
 
     def _take_lease(self) -> None:
         from scenes.errors import UserInputError

@@ -31,6 +31,8 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable, Generator, Iterable, Iterator, Literal, Sequence
 
+from simulator.files import pid_running
+
 Start = Literal["inline", "fork", "forkserver", "spawn", "ray"]
 START_METHODS: tuple[str, ...] = ("inline", "fork", "forkserver", "spawn", "ray")
 PR_SET_PDEATHSIG = 1
@@ -286,31 +288,16 @@ def _ray_call(driver: tuple[str, int], fn: Callable, *args: Any) -> Any:
     ends a dead driver's workers itself, through its cluster's job table, within seconds; this makes
     it one second wherever the driver's pid is visible)."""
     host, pid = driver
-    if host == socket.gethostname() and pid not in _RAY_WATCHED and _pid_visible(pid):
+    if host == socket.gethostname() and pid not in _RAY_WATCHED and pid_running(pid):
         _RAY_WATCHED.append(pid)
 
         def watchdog() -> None:
-            while _pid_visible(pid):
+            while pid_running(pid):
                 time.sleep(1.0)
             os._exit(1)
 
         threading.Thread(target=watchdog, name="evids-driver-watchdog", daemon=True).start()
     return fn(*args)
-
-
-def _pid_visible(pid: int) -> bool:
-    """``pid`` is a running process here (not gone, not a zombie waiting to be reaped)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rpartition(")")[2].split()[0] != "Z"
-    except OSError:  # no /proc (not Linux), or gone meanwhile
-        return os.path.exists(f"/proc/{pid}") or not os.path.isdir("/proc")
 
 
 def _process_table() -> dict[int, tuple[int, str]]:
@@ -353,7 +340,7 @@ def reap_when_gone(driver_pid: int, interval_s: float = 0.25) -> None:
     me = os.getpid()
     before = set(descendants(driver_pid))
     tree: dict[int, str] = {}
-    while _pid_visible(driver_pid):
+    while pid_running(driver_pid):
         tree = {p: t for p, t in descendants(driver_pid).items() if p != me and p not in before}
         time.sleep(interval_s)
     table = _process_table()

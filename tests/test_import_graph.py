@@ -16,7 +16,7 @@ ALLOWED: dict[str, set[str]] = {
     "degradations": {"scenes"},   # only scenes.errors / scenes.yaml_safe (bounded YAML), lazily
     "simulator.seeding": {"scenes"},
     "simulator.files": {"scenes"},
-    "simulator.jobs": {"scenes"},   # the one executor (process pools, Ray), lazily scenes.errors
+    "simulator.jobs": {"scenes", "simulator.files"},  # the one executor (process pools, Ray); files: pid_running
     "simulator.physics": {"scenes", "simulator.seeding", "simulator.files"},  # files: the LOWTRAN table script
     "simulator.sensors": {"scenes", "simulator.seeding", "simulator.physics"},
     "simulator.render": {"scenes", "simulator.seeding", "simulator.physics", "simulator.sensors"},
