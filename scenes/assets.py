@@ -210,7 +210,7 @@ def loft_mesh(
     return mesh
 
 
-def _ring(section2d: np.ndarray, origin: np.ndarray, u: np.ndarray, w: np.ndarray) -> np.ndarray:
+def _ring(section2d: np.ndarray, origin: np.ndarray | Sequence[float], u: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Place 2-D section points (n, 2) in the plane origin + s0 * u + s1 * w."""
     s = np.asarray(section2d, dtype=np.float64)
     return (np.asarray(origin, float)[None] + s[:, :1] * np.asarray(u, float)[None] + s[:, 1:]
@@ -282,7 +282,7 @@ def _rot(axis: str, angle: float) -> np.ndarray:
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
-def _xf(mesh: Mesh, rot: np.ndarray | None = None, shift: Sequence[float] = (0.0, 0.0, 0.0)) -> Mesh:
+def _xf(mesh: Mesh, rot: np.ndarray | None = None, shift: np.ndarray | Sequence[float] = (0.0, 0.0, 0.0)) -> Mesh:
     """Apply x -> rot @ x + shift; a reflection (det < 0) also reverses the winding."""
     v, f = mesh
     if rot is not None:

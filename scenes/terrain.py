@@ -80,7 +80,7 @@ class _Noise:
         return out / math.sqrt(len(self.cells_m)) * 1.6
 
 
-def _texture_multiplier(noise: np.ndarray, texture: float) -> np.ndarray:
+def _texture_multiplier(noise: np.ndarray | float, texture: float) -> np.ndarray:
     return np.exp(texture * noise)   # lognormal: positive, median 1
 
 
@@ -197,20 +197,20 @@ def _tree_line(b: _Builder, line: TreeLine, relief: _Relief, rng: np.random.Gene
     fractions = (0.0, 0.5, 0.8, 1.0)
     rows = [base + f * (top if f < 0.9 else 0.5 * (top + smooth_top)) for f in fractions]
     rows[2] = base + 0.8 * (0.6 * top + 0.4 * smooth_top)
-    k = len(rows)
+    n_rows = len(rows)
     verts = np.vstack([np.stack([x, y, r], -1) for r in rows])
     inward = -np.stack([e, nn, np.zeros(n)], -1)   # normals face the rig
-    normals = np.vstack([inward] * k)
+    normals = np.vstack([inward] * n_rows)
     faces = []
-    for r in range(k - 1):
-        i = np.arange(n - 1) + r * n
+    for row in range(n_rows - 1):
+        i = np.arange(n - 1) + row * n
         faces.append(np.stack([i, i + 1, i + n + 1], -1))
         faces.append(np.stack([i, i + n + 1, i + n], -1))
     column_tex = rng.standard_normal(n)
-    leaf_tex = rng.standard_normal((k, n))   # per-vertex speckle: foliage is not a smooth wall
+    leaf_tex = rng.standard_normal((n_rows, n))   # per-vertex speckle: foliage is not a smooth wall
     tex = np.concatenate([column_tex * (0.6 + 0.4 * f) + 0.8 * leaf_tex[j] for j, f in enumerate(fractions)])
     dt = np.concatenate([(f - 0.5) * 0.6 * np.ones(n) for f in fractions]) * asset.temperature_texture_k \
-        + asset.temperature_texture_k * (0.5 * np.tile(column_tex, k) + 0.5 * leaf_tex.ravel())
+        + asset.temperature_texture_k * (0.5 * np.tile(column_tex, n_rows) + 0.5 * leaf_tex.ravel())
     b.add(verts, np.vstack(faces), line.asset, normals, _texture_multiplier(tex, asset.texture), dt)
 
 
@@ -221,7 +221,9 @@ def _box(b: _Builder, asset_name: str, centre_xy: np.ndarray, yaw: float, size: 
     c, s = math.cos(yaw), math.sin(yaw)
     ax, ay = np.array([c, s, 0.0]), np.array([-s, c, 0.0])
     sides = [(ax, ay, w / 2, d / 2), (-ax, ay, w / 2, d / 2), (ay, ax, d / 2, w / 2), (-ay, ax, d / 2, w / 2)]
-    verts, normals, faces = [], [], []
+    verts: list[np.ndarray] = []
+    normals: list[np.ndarray] = []
+    faces: list[tuple[int, int, int]] = []
     origin = np.array([centre_xy[0], centre_xy[1], base_z])
     for normal, along, half_out, half_along in sides:
         p0 = origin + normal * half_out

@@ -80,7 +80,7 @@ def draw_rotor_noise(rng: np.random.Generator) -> RotorNoise:
     r = ROTOR_NOISE_RANGES
 
     def u(name: str) -> float:
-        return float(rng.uniform(*r[name]))
+        return float(rng.uniform(r[name][0], r[name][1]))
 
     decay, top, offset = u("harmonic_decay"), u("harmonic_top_hz"), u("broadband_offset_db")
     shape = (u("broadband_low_hz"), u("broadband_high_hz"), u("broadband_tilt_db"))
@@ -504,9 +504,10 @@ def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_r
     if noise.broadband_offset_db is not None:
         broadband_db_1m = tonal_db_1m + noise.broadband_offset_db
     broadband_pa = db_spl_to_pa(broadband_db_1m)
-    pwm_on = noise.pwm_hz is not None and pwm_pa > 0 and noise.pwm_hz < 0.45 * sample_rate_hz
+    pwm_hz = noise.pwm_hz if noise.pwm_hz is not None else 0.0
+    pwm_on = noise.pwm_hz is not None and pwm_pa > 0 and pwm_hz < 0.45 * sample_rate_hz
     if sound_power_dba is not None:
-        extra = n_rotors * pwm_pa ** 2 / 2 * 10 ** (float(a_weighting_db(noise.pwm_hz)) / 10) if pwm_on else 0.0
+        extra = n_rotors * pwm_pa ** 2 / 2 * 10 ** (float(a_weighting_db(pwm_hz)) / 10) if pwm_on else 0.0
         scale = _sound_power_scale(coeffs, broadband_pa, n_blades, hover_rpm, sound_power_dba,
                                    noise.broadband_shape, noise.bpf_modulation, extra)
         coeffs *= scale
@@ -523,8 +524,8 @@ def rotor_signature(rpm: np.ndarray, n_blades: int, retarded: Retarded, sample_r
     bpf_mod = 1.0 + noise.bpf_modulation * np.real(z[0] ** n_blades)
     broadband = hiss * bpf_mod * np.mean(thrust, axis=0) ** 1.25 * broadband_pa
     if pwm_on:                          # ESC switching whine: fixed frequency, every rotor, random phases
-        phases = rng.uniform(0, 2 * np.pi, size=n_rotors)
-        tonal = tonal + pwm_pa * np.sum(np.cos(2 * np.pi * noise.pwm_hz * retarded.tau_s[None, :] + phases[:, None]),
+        phases = np.asarray(rng.uniform(0, 2 * np.pi, size=n_rotors))
+        tonal = tonal + pwm_pa * np.sum(np.cos(2 * np.pi * pwm_hz * retarded.tau_s[None, :] + phases[:, None]),
                                         axis=0)
     if tonal_gain is not None:
         tonal = tonal * tonal_gain
@@ -642,7 +643,7 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
     wandering compressor tones at 6-12 kHz and 1-16 kHz noise. The sum is scaled to HELICOPTER_DB_1M.
     """
     r = HELICOPTER_RANGES
-    u = lambda name: float(rng.uniform(*r[name]))  # noqa: E731
+    u = lambda name: float(rng.uniform(r[name][0], r[name][1]))  # noqa: E731
     drawn_rpm, drawn_blades = float(rng.uniform(*HELICOPTER_MAIN_RPM)), int(rng.choice(r["main_blades"]))
     blades = drawn_blades if main_blades is None else int(main_blades)   # drawn anyway: later draws stay put
     if blades < 1:
@@ -667,7 +668,7 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
     tail = np.sum(k[:, None] ** -1.0 * np.cos(2 * np.pi * k[:, None] * tail_phase[None, :]
                                               + rng.uniform(0, 2 * np.pi, size=(k.size, 1))), axis=0)
     turbine = np.zeros(tau.size)
-    for _ in range(int(rng.integers(r["turbine_tones"][0], r["turbine_tones"][1] + 1))):
+    for _ in range(int(rng.integers(int(r["turbine_tones"][0]), int(r["turbine_tones"][1]) + 1))):
         f_t = u("turbine_hz") * (1 + 0.005 * _smooth_random(rng, tau.size, sample_rate_hz, 0.3))
         turbine += np.cos(2 * np.pi * np.cumsum(f_t) / sample_rate_hz + rng.uniform(0, 2 * np.pi))
     turbine_noise = _source_noise(rng, retarded, sample_rate_hz, 1000.0, 16000.0, -2.0)
@@ -848,7 +849,7 @@ def draw_ambience(rng: np.random.Generator, dist: AmbienceDistribution) -> Ambie
         on = rng.random() < p
         level = float(rng.uniform(*getattr(dist, f"{bed}_db")))
         amb[f"{bed}_db"] = round(level, 1) if on else None
-    return Ambience(**amb)
+    return Ambience.model_validate(amb)
 
 
 def _scale_to(x: np.ndarray, level_db: float) -> np.ndarray:

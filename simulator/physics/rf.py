@@ -570,8 +570,10 @@ def synthesize_rf(timeline, seed: int, capture_start_s: np.ndarray, *, config: R
             rngs = tuple(rng_for(seed, "rf", *stream_indices, 100 * (index + 1) + k, part)
                          for part in (_PART_SCHEDULE, _PART_WAVEFORM, _PART_FADING))
             label = f"{track.name}/{name}"
-            build = _fhss_link if preset.kind == "fhss" else _ofdm_link
-            res = build(cfg, preset, geo, starts, duration, rngs, label)
+            if isinstance(preset, rf_links.FhssPreset):
+                res = _fhss_link(cfg, preset, geo, starts, duration, rngs, label)
+            else:
+                res = _ofdm_link(cfg, preset, geo, starts, duration, rngs, label)
             link += res.signal
             on |= res.on
             per_link_snr[label] = res.snr_db

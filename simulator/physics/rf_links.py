@@ -11,7 +11,7 @@ time and frequency (:func:`bursts_in_windows`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -87,7 +87,7 @@ def _centres(bandwidth_hz: float, step_hz: float) -> tuple[float, ...]:
     return tuple(float(c) for c in np.arange(lo, hi + 1.0, step_hz))
 
 
-_ELRS = {"role": "control", "first_channel_hz": 2400.4e6, "channel_spacing_hz": 1e6, "n_channels": 80,
+_ELRS: dict[str, Any] = {"role": "control", "first_channel_hz": 2400.4e6, "channel_spacing_hz": 1e6, "n_channels": 80,
          "modulation": "lora",
              "occupied_bandwidth_hz": 812.5e3, "packets_per_hop": 4, "tx_power_dbm": 20.0}
 
@@ -181,7 +181,7 @@ def ofdm_schedule(preset: OfdmPreset, rng: np.random.Generator, duration_s: floa
     return Schedule(start_s=starts, duration_s=lengths, centre_hz=np.full(n, centre), bandwidth_hz=preset.bandwidth_hz)
 
 
-def band_overlap_fraction(centre_hz: np.ndarray, bandwidth_hz: float, window_low_hz: float,
+def band_overlap_fraction(centre_hz: np.ndarray | float, bandwidth_hz: float, window_low_hz: float,
                           window_high_hz: float) -> np.ndarray:
     """Fraction of each burst's band [c - B/2, c + B/2] inside the receiver passband."""
     lo = np.maximum(np.asarray(centre_hz) - bandwidth_hz / 2, window_low_hz)
