@@ -21,9 +21,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from evids.experiments.realbench import conflict
+from evids.experiments.realbench import conflict, stats
 from evids.experiments.realbench import models as M
-from evids.experiments.realbench import stats
 from evids.experiments.realbench.sweep import SPECS, degrade_audio, degrade_crops
 
 CONDITIONS = {"a_real": "(a) real calibration half", "b_synthetic": "(b) synthetic (training half)",

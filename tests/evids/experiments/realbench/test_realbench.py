@@ -71,7 +71,7 @@ def quick_run(tmp_path_factory):
     s2r = write_sim2real_run(root / "s2r")
     out = root / "run"
     return out, _cli("realbench", "--real", str(real), "--sim2real", str(s2r), "--out", str(out), "--quick",
-                     "--no-audio", "--no-progress")
+                     "--no-audio", "--no-progress", "--triplets", "30")
 
 
 def test_quick_run_writes_scores_sweep_and_page(quick_run):
@@ -103,7 +103,7 @@ def test_quick_run_writes_scores_sweep_and_page(quick_run):
 
 
 def test_quick_run_writes_the_conflict_study_on_both_domains(quick_run):
-    from evids.experiments.realbench.conflict import NOT_SYNCHRONISED, QUICK_N_TRIPLETS, RULES
+    from evids.experiments.realbench.conflict import NOT_SYNCHRONISED, RULES
 
     out, proc = quick_run
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -115,12 +115,13 @@ def test_quick_run_writes_the_conflict_study_on_both_domains(quick_run):
     for reading in ("own_domain", "mixed"):
         for domain in ("real", "synthetic"):
             d = res["readings"][reading][domain]
-            assert d["n_triplets"] == QUICK_N_TRIPLETS
-            assert set(d["classes"]) == set(CLASSES) and d["classes"]["DRONE"] == QUICK_N_TRIPLETS // 2
+            assert d["n_triplets"] == 30                                        # --triplets 30
+            assert set(d["classes"]) == set(summary["sensors"]["ir"]["classes"]) and d["classes"]["DRONE"] == 15
             assert set(d["programs"]) == set(res["programs"])
             for p in d["programs"].values():
                 assert 0.0 <= p["sensor_flip_rate"]["estimate"] <= 1.0 and isinstance(p["inert"], bool)
-                assert p["inert"] == (p["sensor_flip_rate"]["estimate"] < 0.1 or not p["sensor_flip_rate"]["ci_low"] > 0)
+                flip = p["sensor_flip_rate"]
+                assert p["inert"] == (flip["estimate"] < 0.1 or not flip["ci_low"] > 0)
                 assert set(p["rules"]) == set(RULES)
                 for v in p["rules"].values():
                     assert 0.0 <= v["fused_flip_rate"]["estimate"] <= 1.0 and 0.0 <= v["accuracy"]["estimate"] <= 1.0
