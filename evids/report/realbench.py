@@ -162,8 +162,9 @@ def _conflict(res: dict[str, Any]) -> str:
         return "\n".join(parts + [f"<p class='note'>{html.escape(res['status'])}</p>"])
     audio = ", ".join(f"{k} &rarr; {v}" for k, v in res["audio_class_of"].items())
     parts.append(
-        "<p class='note'>Per domain, up to " f"{res['n_triplets_requested']} triplets drawn with replacement from the "
-        "evaluation half, half drone and half not drone; the audio clip of a triplet is of the class "
+        f"<p class='note'>Per domain, {res['n_triplets_requested']} triplets of the sensors "
+        f"{html.escape(', '.join(res['sensors']))} drawn with replacement from the evaluation half, half drone and "
+        "half not drone; the audio clip of a triplet is of the class "
         f"{audio} (the audio set has no birds or airplanes). Synthetic IR and visible crops of a triplet come from "
         "one generated sequence (synchronised). Each sensor's input is its evidential model's clip opinion "
         "coarsened to {not drone, drone}. Program <i>blind m</i>: sensor m's opinion is replaced by that of a twin "
