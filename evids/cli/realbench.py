@@ -22,12 +22,16 @@ def realbench(
     steps: int = typer.Option(None, "--steps", min=1, help="Training steps per model (default 300; --quick 15)."),
     audio_clips: int = typer.Option(None, "--audio-clips-per-class", min=2, help="Synthetic audio clips per class "
                                     "(default: the protocol's)."),
+    triplets: int = typer.Option(None, "--triplets", min=2, help="Pseudo-triplets per domain for the conflict "
+                                 "study (default 200; --quick 40)."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
 ) -> None:
     """Train the softmax and evidential classifiers per sensor (IR crops, visible crops, audio windows) on
     (a) the real calibration half, (b) synthetic, (c) both; score them on the real EVALUATION half (balanced
     accuracy, ECE, UAUC of vacuity / entropy / confidence, clip-bootstrap CIs, MDEs); run the degradation
-    sweep on real and synthetic evaluation inputs and report the sweep agreement. Writes
+    sweep on real and synthetic evaluation inputs and report the sweep agreement; then the conflict programs
+    (one sensor's clip swapped for a twin of the other label) on class-matched pseudo-triplets of both domains
+    (the real sensors are not synchronised: a real triplet is three independent clips of one class). Writes
     OUT/realbench.json, OUT/realbench.html and OUT/realbench_agreement.png.
 
     Example: evids realbench --real ~/data/Drone-detection-dataset --sim2real out/sim2real --out out/realbench
@@ -54,7 +58,8 @@ def realbench(
     create_run_folder(out, inputs=[real, sim2real])
     with DatasetLock(out, "realbench"):
         summary = run_realbench(real, sim2real, out, quick=quick, audio=audio, visual=sensors, n_seeds=seeds,
-                                severities=sev, steps=steps, audio_clips_per_class=audio_clips, progress=progress,
+                                severities=sev, steps=steps, audio_clips_per_class=audio_clips, n_triplets=triplets,
+                                progress=progress,
                                 log=typer.echo)
     typer.echo(format_table(summary))
     typer.echo(f"report: {out / 'realbench.html'}")

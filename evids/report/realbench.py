@@ -155,6 +155,59 @@ def _sensor(sensor: str, res: dict[str, Any]) -> str:
     return "\n".join(parts)
 
 
+def _conflict(res: dict[str, Any]) -> str:
+    """The "Conflict programs on pseudo-triplets" table: one row per reading x domain x program x rule."""
+    parts = ["<h3>Conflict programs on pseudo-triplets</h3>", f"<p><b>{html.escape(res['note'])}</b></p>"]
+    if "status" in res:
+        return "\n".join(parts + [f"<p class='note'>{html.escape(res['status'])}</p>"])
+    audio = ", ".join(f"{k} &rarr; {v}" for k, v in res["audio_class_of"].items())
+    parts.append(
+        f"<p class='note'>Per domain, {res['n_triplets_requested']} triplets of the sensors "
+        f"{html.escape(', '.join(res['sensors']))} drawn with replacement from the evaluation half, half drone and "
+        "half not drone; the audio clip of a triplet is of the class "
+        f"{audio} (the audio set has no birds or airplanes). Synthetic IR and visible crops of a triplet come from "
+        "one generated sequence (synchronised). Each sensor's input is its evidential model's clip opinion "
+        "coarsened to {not drone, drone}. Program <i>blind m</i>: sensor m's opinion is replaced by that of a twin "
+        "clip of the opposite label from the same domain's evaluation half. Rules: "
+        + "; ".join(f"{html.escape(k)} = {html.escape(v)}" for k, v in res["rules"].items())
+        + f" (c_max {res['c_max']:g}, the experiment default). 95 % intervals from {res['bootstrap']} bootstrap "
+        "resamples of the triplets (within label); they do not include the sampling of the clip pool itself. "
+        f"<b>Inert</b>: the compromised sensor's realised vote-flip rate is below {res['inert_flip_rate']:g} or its "
+        "interval reaches 0; the program did not test the fusion there.</p>")
+    for reading, title in (("own_domain", "each domain through its own models: real (a), synthetic (b)"),
+                           ("mixed", "both domains through the mixed models (c)")):
+        out = res["readings"].get(reading)
+        if not out:
+            continue
+        rows = []
+        for domain in ("real", "synthetic"):
+            d = out.get(domain)
+            if d is None or "status" in d:
+                rows.append([domain, "&ndash;", html.escape(d["status"] if d else "not run")] + ["&ndash;"] * 5)
+                continue
+            for r in res["rules"]:
+                rows.append([f"{domain} ({d['n_triplets']})", "none (clean)", "&ndash;", html.escape(r),
+                             "&ndash;", _ci(d["clean"]["accuracy"][r]), "&ndash;", _ci(d["clean"]["ds_conflict"])])
+            for name, p in d["programs"].items():
+                if "rules" not in p:
+                    rows.append([domain, html.escape(name), html.escape(p["note"])] + ["&ndash;"] * 5)
+                    continue
+                flip = _ci(p["sensor_flip_rate"]) + (" <b>inert</b>" if p["inert"] else "")
+                for r, v in p["rules"].items():
+                    rows.append([f"{domain} ({d['n_triplets']})", html.escape(name), flip, html.escape(r),
+                                 _ci(v["fused_flip_rate"]), _ci(d["clean"]["accuracy"][r]), _ci(v["accuracy"]),
+                                 _ci(p["ds_conflict"])])
+        tab = _table(["domain (triplets)", "program", "compromised sensor's vote flips", "rule", "fused flips",
+                      "fused accuracy clean", "fused accuracy under program", "mean DS conflict"], rows)
+        diff = out.get("real_minus_synthetic_fused_flip_rate", {})
+        drows = [[html.escape(p), html.escape(r), _ci(v, signed=True)] for p, rules in diff.items()
+                 for r, v in rules.items()]
+        body = f"<h4>Pseudo-triplets, {title}</h4>" + tab + (
+            _table(["program", "rule", "real - synthetic fused flip rate (MDE)"], drows) if drows else "")
+        parts.append(body if reading == "own_domain" else f"<details><summary>{title}</summary>{body}</details>")
+    return "\n".join(parts)
+
+
 def section_html(summary: dict[str, Any], examples: dict[str, Any] | None = None) -> str:
     parts = ["<h2>Real benchmark: the evidential pipeline on the Svanström clips beside the generated scenarios</h2>",
              "<p class='note'>" + html.escape(summary["split_rule"]) + ". Every figure is on an evaluation half; "
@@ -168,6 +221,8 @@ def section_html(summary: dict[str, Any], examples: dict[str, Any] | None = None
                                              "degradation x severity, 95 % CIs, dashed identity line")]
     for sensor, res in summary["sensors"].items():
         parts.append(_sensor(sensor, res))
+    if "conflict" in summary:
+        parts.append(_conflict(summary["conflict"]))
     if examples:
         parts.append(_img(examples_figure(examples), "Example evaluation crops: clean, then each degradation at "
                                                      "the top severity (first crop of each set)"))

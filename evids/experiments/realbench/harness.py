@@ -21,8 +21,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from evids.experiments.realbench import conflict, stats
 from evids.experiments.realbench import models as M
-from evids.experiments.realbench import stats
 from evids.experiments.realbench.sweep import SPECS, degrade_audio, degrade_crops
 
 CONDITIONS = {"a_real": "(a) real calibration half", "b_synthetic": "(b) synthetic (training half)",
@@ -215,6 +215,9 @@ def visual_track(samples: list, sensor: str, classes: list[str], *, seeds: list[
                         f"{sensor}: models" if progress else None)
     res = _evaluate(preds, y, clip, cells, labels, top, seeds, n_boot, seed, sensor)
     res["classes"] = classes
+    if "DRONE" in classes:      # for the conflict study; popped before anything is written
+        res["clip_opinions"] = conflict.clip_opinions(preds, clip, {x.clip: x.cls for x in real_eval + syn_eval},
+                                                      classes.index("DRONE"), seeds)
     res["n_train"] = {c: int(len(v[1])) for c, v in train.items()}
     res["examples"] = {d: {c: tests[d][c][:6] for c in ["clean", *[cell_name(g, max(severities))
                                                                    for _, g in SPECS[sensor]]]}
@@ -264,6 +267,7 @@ def audio_track(real_clips: list, synthetic_clips: list, *, seeds: list[int], st
     preds = _run_models(_audio_job, train, tests, 2, seeds, steps, workers, "audio: models" if progress else None)
     res = _evaluate(preds, y, clip, cells, labels, top, seeds, n_boot, seed, "audio")
     res["classes"] = ["not drone", "drone"]
+    res["clip_opinions"] = conflict.clip_opinions(preds, clip, {c.name: c.cls for c in ev + syn_eval}, 1, seeds)
     res["n_train"] = {c: int(len(v[1])) for c, v in train.items()}
     return res
 
@@ -271,9 +275,10 @@ def audio_track(real_clips: list, synthetic_clips: list, *, seeds: list[int], st
 def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = False, audio: bool = True,
                   visual: tuple[str, ...] = ("ir", "visible"), n_seeds: int | None = None,
                   severities: tuple[float, ...] | None = None, steps: int | None = None,
-                  audio_clips_per_class: int | None = None, progress: bool = True,
+                  audio_clips_per_class: int | None = None, n_triplets: int | None = None, progress: bool = True,
                   log: Callable[[str], None] = print) -> dict[str, Any]:
     """The whole track into ``out`` (see the module docstring); returns the summary."""
+    from evids.experiments.config import FusionConfig
     from evids.experiments.pipeline import forked_map
     from evids.experiments.sim2real import audio as s2r_audio
     from evids.experiments.sim2real.config import Sim2RealConfig
@@ -346,6 +351,13 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
         summary["timings_s"]["audio"] = time.time() - t
         log(f"[realbench] audio done in {summary['timings_s']['audio']:.0f} s")
     bench.close()
+    t = time.time()
+    tables = {s: r.pop("clip_opinions", None) for s, r in summary["sensors"].items()}
+    fusion = FusionConfig()           # the experiment's default c_max and construction, not tuned here
+    summary["conflict"] = conflict.run_conflict(
+        tables, seed=cfg.seed, n_triplets=n_triplets or (conflict.QUICK_N_TRIPLETS if quick else conflict.N_TRIPLETS),
+        n_boot=n_boot, c_max=fusion.c_max, construction=fusion.construction)
+    summary["timings_s"]["conflict"] = time.time() - t
     summary["timings_s"]["total"] = time.time() - t0
     examples = {s: r.pop("examples", None) for s, r in summary["sensors"].items()}
     write_page(out, summary, examples)
@@ -357,7 +369,8 @@ def _write_partial(out: Path, summary: dict[str, Any]) -> None:
     """realbench.json so far (a later failure keeps the finished sensors), without the example crops."""
     from evids.runfolder import write_json
 
-    write_json(out / "realbench.json", {**summary, "sensors": {s: {k: v for k, v in r.items() if k != "examples"}
+    write_json(out / "realbench.json", {**summary, "sensors": {s: {k: v for k, v in r.items()
+                                                                   if k not in ("examples", "clip_opinions")}
                                                                for s, r in summary["sensors"].items()}})
 
 
@@ -393,4 +406,6 @@ def format_table(summary: dict[str, Any]) -> str:
                 lines.append(f"    disagreeing: {'; '.join(sw['disagreeing_cells']) or 'none'}")
                 lines.append(f"    inert: real {', '.join(sw['inert']['real']) or 'none'}; synthetic "
                              f"{', '.join(sw['inert']['synthetic']) or 'none'}")
+    if "conflict" in summary:
+        lines += conflict.format_lines(summary["conflict"])
     return "\n".join(lines)

@@ -58,7 +58,8 @@ def interval(est: float, boot: np.ndarray) -> dict[str, float]:
     return {"estimate": est, "ci_low": float(lo), "ci_high": float(hi)}
 
 
-def _diff(est: float, boot: np.ndarray) -> dict[str, float]:
+def difference(est: float, boot: np.ndarray) -> dict[str, float]:
+    """A difference's estimate and interval (:func:`interval`) with its MDE = Z_MDE x the bootstrap SD."""
     d = interval(est, boot)
     b = boot[np.isfinite(boot)]
     d["mde"] = float(Z_MDE * b.std(ddof=1)) if b.size > 2 else float("nan")
@@ -81,7 +82,7 @@ def score_models(y: np.ndarray, clip: np.ndarray, models: dict[str, tuple[list[n
                            "differences": {}}
     for name, (a, c) in pairs.items():
         if a in models and c in models:
-            out["differences"][name] = {m: _diff(est[a][m] - est[c][m], boot[a][m] - boot[c][m]) for m in METRICS}
+            out["differences"][name] = {m: difference(est[a][m] - est[c][m], boot[a][m] - boot[c][m]) for m in METRICS}
     return out
 
 
@@ -164,7 +165,7 @@ def agreement(real: dict[str, np.ndarray], synthetic: dict[str, np.ndarray], cel
         out["vacuity_same_sign_fraction"] = interval(float(same[0]), same[1:])
     cells_out = []
     for j, cell in enumerate(cells):
-        d = _diff(float(dr[0, j] - ds[0, j]), dr[1:n, j] - ds[1:n, j])
+        d = difference(float(dr[0, j] - ds[0, j]), dr[1:n, j] - ds[1:n, j])
         row = {"cell": cell, "label": labels.get(cell, cell), "drop_real": interval(float(dr[0, j]), dr[1:, j]),
                "drop_synthetic": interval(float(ds[0, j]), ds[1:, j]), "drop_difference": d,
                "disagree": bool(np.isfinite(d["ci_low"]) and (d["ci_low"] > 0 or d["ci_high"] < 0))}

@@ -3,6 +3,7 @@ miniature `evids sim2real` run folder (no rendering, no real data), plus known-a
 sweep-agreement statistics, the degradation wrapper and the evidential crop model."""
 from __future__ import annotations
 
+import html
 import json
 import subprocess
 import sys
@@ -70,7 +71,7 @@ def quick_run(tmp_path_factory):
     s2r = write_sim2real_run(root / "s2r")
     out = root / "run"
     return out, _cli("realbench", "--real", str(real), "--sim2real", str(s2r), "--out", str(out), "--quick",
-                     "--no-audio", "--no-progress")
+                     "--no-audio", "--no-progress", "--triplets", "30")
 
 
 def test_quick_run_writes_scores_sweep_and_page(quick_run):
@@ -99,6 +100,35 @@ def test_quick_run_writes_scores_sweep_and_page(quick_run):
     assert "Clean balanced accuracy" in page
     assert (out / "realbench_agreement.png").stat().st_size > 1000
     assert "sweep agreement (own_domain" in proc.stdout
+
+
+def test_quick_run_writes_the_conflict_study_on_both_domains(quick_run):
+    from evids.experiments.realbench.conflict import NOT_SYNCHRONISED, RULES
+
+    out, proc = quick_run
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    summary = json.loads((out / "realbench.json").read_text())
+    assert all("clip_opinions" not in r for r in summary["sensors"].values())     # in memory only
+    res = summary["conflict"]
+    assert res["programs"] == ["blind_ir", "blind_visible"]                      # --no-audio: pairs
+    assert res["c_max"] == 0.95                                                 # the experiment default
+    for reading in ("own_domain", "mixed"):
+        for domain in ("real", "synthetic"):
+            d = res["readings"][reading][domain]
+            assert d["n_triplets"] == 30                                        # --triplets 30
+            assert set(d["classes"]) == set(summary["sensors"]["ir"]["classes"]) and d["classes"]["DRONE"] == 15
+            assert set(d["programs"]) == set(res["programs"])
+            for p in d["programs"].values():
+                assert 0.0 <= p["sensor_flip_rate"]["estimate"] <= 1.0 and isinstance(p["inert"], bool)
+                flip = p["sensor_flip_rate"]
+                assert p["inert"] == (flip["estimate"] < 0.1 or not flip["ci_low"] > 0)
+                assert set(p["rules"]) == set(RULES)
+                for v in p["rules"].values():
+                    assert 0.0 <= v["fused_flip_rate"]["estimate"] <= 1.0 and 0.0 <= v["accuracy"]["estimate"] <= 1.0
+        assert set(res["readings"][reading]["real_minus_synthetic_fused_flip_rate"]) == set(res["programs"])
+    page = (out / "realbench.html").read_text()
+    assert "Conflict programs on pseudo-triplets" in page and html.escape(NOT_SYNCHRONISED) in page
+    assert "conflict programs on pseudo-triplets" in proc.stdout and "blind_visible" in proc.stdout
 
 
 def test_missing_sim2real_run_is_a_user_error(tmp_path):
