@@ -138,6 +138,12 @@ def _sensor(sensor: str, res: dict[str, Any]) -> str:
                              "same-sign vacuity change", "cells"],
                             [[_ci(sw["spearman"]), _ci(sw["median_abs_drop_difference_points"], digits=1),
                               _ci(sw.get("vacuity_same_sign_fraction")), str(sw["n_cells"])]]))
+        if sw.get("at_chance"):
+            who = html.escape(" and ".join(sw["at_chance"]))
+            parts.append("<p style='color:#a00'><b>Not informative:</b> the " + who
+                         + " model is at chance on its clean inputs (95 % interval reaches chance), so a degradation "
+                         "has nothing to take away: the drops of that domain, and every agreement figure below, "
+                         "measure nothing.</p>")
         bad = sw["disagreeing_cells"]
         parts.append("<p><b>Disagreeing cells</b> (real - synthetic drop, 95 % CI excludes 0; do not trust these "
                      "synthetic stress tests for this sensor): "

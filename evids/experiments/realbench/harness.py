@@ -114,9 +114,16 @@ def _run_models(job: Callable, train: dict, tests: dict, n_classes: int, seeds: 
     return {jobs[i]: r for i, r in forked_map(job, jobs, workers, label, context=ctx)}
 
 
+def at_chance(clean: dict[str, dict[str, float]], chance: float) -> list[str]:
+    """The domains whose model is not above chance on its clean inputs (95 % interval reaches chance):
+    there a degradation has nothing to take away, so that domain's drops, and the sweep agreement
+    built on them, measure nothing."""
+    return [d for d, r in clean.items() if not np.isfinite(r["ci_low"]) or r["ci_low"] <= chance]
+
+
 def _evaluate(preds: dict, y: dict[str, np.ndarray], clip: dict[str, np.ndarray], cells: list[str],
               labels: dict[str, str], top: dict[str, str], seeds: list[int], n_boot: int, seed: int,
-              sensor: str) -> dict[str, Any]:
+              sensor: str, n_classes: int) -> dict[str, Any]:
     """Scores on the real evaluation half (clean) and the sweep on both domains."""
     from simulator.seeding import rng_for
 
@@ -168,6 +175,8 @@ def _evaluate(preds: dict, y: dict[str, np.ndarray], clip: dict[str, np.ndarray]
             er, es = pick(effects["real"][cr][h]), pick(effects["synthetic"][cs][h])
             res = stats.agreement(er, es, degraded, labels)
             res["inert"] = {"real": stats.inert(er, degraded, top), "synthetic": stats.inert(es, degraded, top)}
+            res["at_chance"] = at_chance({"real": clean["real"][cr][h], "synthetic": clean["synthetic"][cs][h]},
+                                         1.0 / n_classes)
             sweep[name][h] = res
     return {"scores": scores, "sweep": sweep,
             "n_eval": {d: {"clips": int(np.unique(clip[d]).size), "rows": int(len(y[d]))} for d in y}}
@@ -213,7 +222,7 @@ def visual_track(samples: list, sensor: str, classes: list[str], *, seeds: list[
         return {"note": "too few samples", "n": {d: int(len(v)) for d, v in y.items()}}
     preds = _run_models(_visual_job, train, tests, len(classes), seeds, steps, workers,
                         f"{sensor}: models" if progress else None)
-    res = _evaluate(preds, y, clip, cells, labels, top, seeds, n_boot, seed, sensor)
+    res = _evaluate(preds, y, clip, cells, labels, top, seeds, n_boot, seed, sensor, len(classes))
     res["classes"] = classes
     if "DRONE" in classes:      # for the conflict study; popped before anything is written
         res["clip_opinions"] = conflict.clip_opinions(preds, clip, {x.clip: x.cls for x in real_eval + syn_eval},
@@ -265,7 +274,7 @@ def audio_track(real_clips: list, synthetic_clips: list, *, seeds: list[int], st
                 tests[domain][cell_name(deg, sev)] = stack(pool, lambda c, d=deg, v=sev, q=ds: replace(
                     c, samples=degrade_audio(c.samples, c.sample_rate, d, v, q + c.number)))[0]
     preds = _run_models(_audio_job, train, tests, 2, seeds, steps, workers, "audio: models" if progress else None)
-    res = _evaluate(preds, y, clip, cells, labels, top, seeds, n_boot, seed, "audio")
+    res = _evaluate(preds, y, clip, cells, labels, top, seeds, n_boot, seed, "audio", 2)
     res["classes"] = ["not drone", "drone"]
     res["clip_opinions"] = conflict.clip_opinions(preds, clip, {c.name: c.cls for c in ev + syn_eval}, 1, seeds)
     res["n_train"] = {c: int(len(v[1])) for c, v in train.items()}
@@ -406,6 +415,9 @@ def format_table(summary: dict[str, Any]) -> str:
                 lines.append(f"    disagreeing: {'; '.join(sw['disagreeing_cells']) or 'none'}")
                 lines.append(f"    inert: real {', '.join(sw['inert']['real']) or 'none'}; synthetic "
                              f"{', '.join(sw['inert']['synthetic']) or 'none'}")
+                if sw.get("at_chance"):
+                    lines.append(f"    NOT INFORMATIVE: the {' and '.join(sw['at_chance'])} model is at chance on its "
+                                 "clean inputs, so its drops (and this agreement) measure nothing")
     if "conflict" in summary:
         lines += conflict.format_lines(summary["conflict"])
     return "\n".join(lines)

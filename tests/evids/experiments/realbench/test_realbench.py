@@ -95,6 +95,12 @@ def test_quick_run_writes_scores_sweep_and_page(quick_run):
         assert sweep["n_cells"] == len(SPECS[sensor])                   # one severity in --quick
         assert len(sweep["cells"]) == sweep["n_cells"]
         assert set(sweep["disagreeing_cells"]) <= {c["label"] for c in sweep["cells"]}
+        # the toy models (15 steps) sit at chance: the flag must say so, and the page and printout too
+        expect = [d for d in ("real", "synthetic")
+                  if ref[d]["a_real" if d == "real" else "b_synthetic"]["evidential"]["ci_low"] <= 1 / len(CLASSES)]
+        assert sweep["at_chance"] == expect
+        if expect:
+            assert "NOT INFORMATIVE" in proc.stdout and "Not informative" in (out / "realbench.html").read_text()
     page = (out / "realbench.html").read_text()
     assert "Real benchmark" in page and "data:image/png;base64" in page and "Disagreeing cells" in page
     assert "Clean balanced accuracy" in page
@@ -129,6 +135,17 @@ def test_quick_run_writes_the_conflict_study_on_both_domains(quick_run):
     page = (out / "realbench.html").read_text()
     assert "Conflict programs on pseudo-triplets" in page and html.escape(NOT_SYNCHRONISED) in page
     assert "conflict programs on pseudo-triplets" in proc.stdout and "blind_visible" in proc.stdout
+
+
+def test_at_chance_names_the_domains_whose_clean_interval_reaches_chance():
+    from evids.experiments.realbench.harness import at_chance
+
+    clean = {"real": {"estimate": 0.76, "ci_low": 0.70, "ci_high": 0.82},
+             "synthetic": {"estimate": 0.27, "ci_low": 0.24, "ci_high": 0.31}}
+    assert at_chance(clean, 0.25) == ["synthetic"]
+    assert at_chance(clean, 0.20) == []
+    assert at_chance(clean, 0.70) == ["real", "synthetic"]                       # reaching chance counts
+    assert at_chance({"real": {"estimate": 0.9, "ci_low": float("nan"), "ci_high": float("nan")}}, 0.5) == ["real"]
 
 
 def test_missing_sim2real_run_is_a_user_error(tmp_path):
