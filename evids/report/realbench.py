@@ -62,7 +62,10 @@ def agreement_figure(summary: dict[str, Any]) -> bytes | None:
         lo, hi = float(np.nanmin(ends)) - 2, float(np.nanmax(ends)) + 2
         ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="identity")
         rho = res["spearman"]
-        ax.set_title(f"{sensor}: Spearman {rho['estimate']:.2f}", fontsize=10)
+        title = f"{sensor}: Spearman {rho['estimate']:.2f}"
+        if res.get("at_chance"):     # a domain's model at chance: its drops measure nothing
+            title += f"\nNOT INFORMATIVE ({' and '.join(res['at_chance'])} model at chance)"
+        ax.set_title(title, fontsize=10, color="tab:red" if res.get("at_chance") else "black")
         ax.set_xlabel("synthetic accuracy drop (points)")
         ax.set_ylabel("real accuracy drop (points)")
         ax.legend(fontsize=7, loc="upper left")
