@@ -245,7 +245,7 @@ def read_gt(path: Path, *, seq_length: int | None = None, strict: bool = True,
 def read_seqinfo(path: Path) -> dict[str, str]:
     """The ``[Sequence]`` section of a seqinfo*.ini, with numeric fields checked."""
     parser = configparser.ConfigParser()
-    parser.optionxform = str
+    parser.optionxform = str  # type: ignore[assignment,method-assign]  # keep keys' case (documented use)
     try:
         parser.read_string(read_text(path))
     except configparser.Error as exc:

@@ -40,7 +40,7 @@ import subprocess
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Iterator, Literal
+from typing import Iterable, Iterator, Literal, cast
 
 import numpy as np
 
@@ -59,7 +59,7 @@ AUDIO_SAMPLE_RATE_HZ = 44_100
 LABEL_COUNT_TOLERANCE = 1
 DESCRIPTION = "Video_dataset_description.xlsx"
 
-_FOLDER = {"ir": "Video_IR", "visible": "Video_V", "audio": "Audio"}
+_FOLDER: dict[Sensor, str] = {"ir": "Video_IR", "visible": "Video_V", "audio": "Audio"}
 _PREFIX = {"ir": "IR_", "visible": "V_", "audio": ""}
 _SHEET_SENSOR = {"IR": "ir", "V": "visible"}
 _NAME_RE = re.compile(r"^(?:(IR|V)_)?([A-Z]+)_(\d+)(_LABELS)?\.(mp4|mat|wav)$")
@@ -360,7 +360,7 @@ def decode_labels(data: bytes, path: str) -> list[tuple[float, float, float, flo
     for i, box in enumerate(boxes):
         if box is not None and not (all(np.isfinite(box)) and box[2] > 0 and box[3] > 0):
             raise FormatError(path, f"frame {i + 1}", f"bad box {box}")
-        out.append(None if box is None else tuple(float(v) for v in box))  # type: ignore[misc]
+        out.append(None if box is None else cast(tuple[float, float, float, float], tuple(float(v) for v in box)))
     return out
 
 

@@ -33,7 +33,7 @@ import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator, Literal, Protocol
+from typing import Any, Iterable, Iterator, Literal, Protocol
 
 import numpy as np
 
@@ -78,10 +78,10 @@ def mfcc_segments(audio: np.ndarray, sample_rate_hz: float, n_segments: int | No
     seg = int(round(SEGMENT_S * sample_rate_hz))
     x = np.asarray(audio, dtype=np.float32).ravel()
     count = int(np.ceil(x.size / seg)) if n_segments is None else int(n_segments)
-    x = np.pad(x, (0, max(0, count * seg - x.size)))[: count * seg].reshape(count, seg)
+    segments = np.pad(x, (0, max(0, count * seg - x.size)))[: count * seg].reshape(count, seg)
     n_fft = (MFCC_N_FFT if abs(sample_rate_hz - AUDIO_SAMPLE_RATE_HZ) < 1
              else int(2 ** np.ceil(np.log2(0.0232 * sample_rate_hz))))
-    power = librosa.feature.melspectrogram(y=x, sr=sample_rate_hz, n_fft=n_fft, hop_length=mfcc_hop_length(seg),
+    power = librosa.feature.melspectrogram(y=segments, sr=sample_rate_hz, n_fft=n_fft, hop_length=mfcc_hop_length(seg),
                                            n_mels=MFCC_N_MELS, center=True)
     log_power = 10.0 * np.log10(np.maximum(power, 1e-10))
     log_power = np.maximum(log_power, log_power.max(axis=(1, 2), keepdims=True) - MFCC_TOP_DB)
@@ -627,7 +627,7 @@ def export_public(src_root: str | Path, out: str | Path, *, mfcc: str = "evids",
     clips = discover_clips(src_root)
     splits = assign_splits(clips, test_fraction)
     rf_cfg = (source_manifest.get("config") or {}).get("rf") or {}
-    items = clips
+    items: Iterable[ClipFiles] = clips
     if progress:
         from rich.progress import track
 
@@ -652,9 +652,10 @@ def export_public(src_root: str | Path, out: str | Path, *, mfcc: str = "evids",
             dest = out / PUBLIC_EXTRAS["labels"] / rel / f"{clip.number}.json"
             dest.parent.mkdir(parents=True, exist_ok=True)
             dest.write_bytes(clip.labels_json.read_bytes())
-        if clip.iq is not None and rf_cfg:
+        saved_iq = load_iq(clip) if clip.iq is not None and rf_cfg else None
+        if saved_iq is not None:
             info = json.loads(clip.labels_json.read_text()).get("rf", {}) if clip.labels_json else {}
-            iq = load_iq(clip).astype(np.complex64)
+            iq = saved_iq.astype(np.complex64)
             starts = info.get("capture_start_s") or [s * SEGMENT_S for s in range(iq.shape[0])]
             base = out / PUBLIC_EXTRAS["rf_iq"] / rel / clip.number
             base.parent.mkdir(parents=True, exist_ok=True)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -597,7 +598,7 @@ class CameraModel:
                            buffers.thermal_kelvin if self.ideal else None)
 
     def metadata(self) -> dict:
-        meta = {"sensor": "ideal"} if self.ideal else \
+        meta: dict[str, Any] = {"sensor": "ideal"} if self.ideal else \
             {"sensor": "camera", "rgb": self.rgb.metadata(), "thermal": self.thermal.metadata()}
         if self.recording is not None:
             meta["recording"] = self.recording.metadata()

@@ -15,6 +15,7 @@ control: constant rate factor ``crf`` or average ``bit_rate_bps``; a key frame e
 from __future__ import annotations
 
 from fractions import Fraction
+from typing import Any
 
 import numpy as np
 
@@ -30,7 +31,7 @@ def _open_encoder(width: int, height: int, frame_rate_hz: float, params: Recordi
 
     if ENCODER not in av.codecs_available:
         raise UserInputError(f"{field}: this PyAV build has no {ENCODER} encoder (the recording chain needs it)")
-    ctx = av.CodecContext.create(ENCODER, "w")
+    ctx: Any = av.CodecContext.create(ENCODER, "w")   # a VideoCodecContext for a video encoder
     ctx.width, ctx.height, ctx.pix_fmt = width, height, "yuv420p"
     rate = Fraction(frame_rate_hz).limit_denominator(1001)
     ctx.framerate, ctx.time_base = rate, 1 / rate
