@@ -172,13 +172,15 @@ def fuse(ops: np.ndarray, c_max: float, construction: str = "canonical") -> tupl
 
 
 def program_rows(ops: np.ndarray, m: int, twin: np.ndarray, label: np.ndarray, c_max: float,
-                 construction: str = "canonical") -> dict[str, np.ndarray]:
+                 construction: str = "canonical",
+                 clean: tuple[dict[str, np.ndarray], np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """Per-triplet indicators of program "blind sensor m" (its opinion replaced by ``twin`` (n, 3)):
     the compromised sensor's vote flip, DS conflict clean and under the program, and per rule the
-    fused-decision flip and correctness clean and under the program."""
+    fused-decision flip and correctness clean and under the program. ``clean``: :func:`fuse` of
+    ``ops`` when the caller has it already (every program of a domain shares it)."""
     swapped = ops.copy()
     swapped[m] = twin
-    clean_v, clean_c = fuse(ops, c_max, construction)
+    clean_v, clean_c = clean if clean is not None else fuse(ops, c_max, construction)
     prog_v, prog_c = fuse(swapped, c_max, construction)
     rows = {"sensor_flip": (votes(twin) != votes(ops[m])).astype(np.float64),
             "ds_conflict": prog_c.astype(np.float64), "ds_conflict_clean": clean_c.astype(np.float64)}
@@ -229,7 +231,8 @@ def domain_study(tables: dict[str, dict[str, Any]], cond: str, trip: dict[str, A
         if s not in twins:
             res["programs"][f"blind_{s}"] = {"sensor": s, "note": "not run: no clip of one label for the twin"}
             continue
-        rows = program_rows(ops, i, tables[s]["opinion"][cond][twins[s]], label, c_max, construction)
+        rows = program_rows(ops, i, tables[s]["opinion"][cond][twins[s]], label, c_max, construction,
+                            clean=(clean_v, clean_c))
         flip = _ci(means(rows["sensor_flip"], w))
         prog: dict[str, Any] = {"sensor": s, "sensor_flip_rate": flip, "inert": is_inert(flip),
                                 "ds_conflict": _ci(means(rows["ds_conflict"], w)), "rules": {}}
@@ -298,10 +301,7 @@ def _difference(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
 def format_lines(res: dict[str, Any]) -> list[str]:
     """The key lines of the study for the command's printed summary (estimates [95 % CI])."""
     def ci(r: dict | None, f: str = "{:.2f}") -> str:
-        if not r or r.get("estimate") is None or not np.isfinite(r["estimate"]):
-            return "-"
-        s = f"{f.format(r['estimate'])} [{f.format(r['ci_low'])}, {f.format(r['ci_high'])}]"
-        return s + (f" MDE {r['mde']:.2f}" if r.get("mde") is not None and np.isfinite(r["mde"]) else "")
+        return stats.format_interval(r, f, "{:.2f}")
 
     if "status" in res:
         return [f"conflict programs on pseudo-triplets: {res['status']}"]

@@ -386,10 +386,7 @@ def _write_partial(out: Path, summary: dict[str, Any]) -> None:
 def format_table(summary: dict[str, Any]) -> str:
     """The plain-text summary the command prints."""
     def ci(r: dict | None, f: str = "{:.3f}") -> str:
-        if not r or r.get("estimate") is None or not np.isfinite(r["estimate"]):
-            return "-"
-        s = f"{f.format(r['estimate'])} [{f.format(r['ci_low'])}, {f.format(r['ci_high'])}]"
-        return s + (f" MDE {r['mde']:.3f}" if r.get("mde") is not None and np.isfinite(r["mde"]) else "")
+        return stats.format_interval(r, f)
 
     lines = []
     for sensor, res in summary["sensors"].items():

@@ -58,6 +58,15 @@ def interval(est: float, boot: np.ndarray) -> dict[str, float]:
     return {"estimate": est, "ci_low": float(lo), "ci_high": float(hi)}
 
 
+def format_interval(r: dict | None, fmt: str = "{:.3f}", mde_fmt: str = "{:.3f}") -> str:
+    """``estimate [low, high]`` (and `` MDE m`` when the interval carries one) for printed summaries;
+    ``-`` when there is no finite estimate."""
+    if not r or r.get("estimate") is None or not np.isfinite(r["estimate"]):
+        return "-"
+    s = f"{fmt.format(r['estimate'])} [{fmt.format(r['ci_low'])}, {fmt.format(r['ci_high'])}]"
+    return s + (" MDE " + mde_fmt.format(r["mde"]) if r.get("mde") is not None and np.isfinite(r["mde"]) else "")
+
+
 def difference(est: float, boot: np.ndarray) -> dict[str, float]:
     """A difference's estimate and interval (:func:`interval`) with its MDE = Z_MDE x the bootstrap SD."""
     d = interval(est, boot)
