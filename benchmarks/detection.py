@@ -21,10 +21,10 @@ import time
 import numpy as np
 import torch
 
-from evids.experiments.detection.conditions import StreamMaps, fuse_maps
-from evids.experiments.detection.tracking import FrameDetections, SwitchingTracker
 from evids.gating import GateParams, HysteresisGate
 from evids.models.detector import CentreDetector, decode_peaks
+from harness.experiments.detection.conditions import StreamMaps, fuse_maps
+from harness.experiments.detection.tracking import FrameDetections, SwitchingTracker
 
 
 def _best(fn, repeats: int) -> float:

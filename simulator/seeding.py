@@ -20,9 +20,9 @@ STREAMS = {
     "sim2real": 9,
     "terrain": 10,
     "tracking": 11,
-    "fusion_init": 99,          # E2 fusion heads' initialisation (evids.experiments.pipeline)
-    "detection": 1600,          # the detection experiment (evids.experiments.detection.data)
-    "clip_split": 0x5B117,      # E2 train/val/test split of clips (evids.experiments.data)
+    "fusion_init": 99,          # E2 fusion heads' initialisation (harness.experiments.pipeline)
+    "detection": 1600,          # the detection experiment (harness.experiments.detection.data)
+    "clip_split": 0x5B117,      # E2 train/val/test split of clips (harness.experiments.data)
 }
 
 

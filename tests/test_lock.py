@@ -81,7 +81,7 @@ def test_run_folders_record_commit_lock_hash_and_numeric_versions(tmp_path):
     import hashlib
     import json
 
-    from evids.runfolder import mark_stage
+    from harness.runfolder import mark_stage
     from simulator.files import NUMERIC_PACKAGES, environment_record
 
     mark_stage(tmp_path, "train", 1.0)

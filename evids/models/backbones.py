@@ -1,6 +1,6 @@
 """Unimodal backbones sized for a 2-core CPU, and :class:`UnimodalModel` = backbone + head.
 
-Inputs (as produced by :mod:`evids.experiments.data`):
+Inputs (as produced by :mod:`harness.experiments.data`):
 
 - audio: MFCC ``(B, 1, 40, 40)`` float32 (LeNet-like 2-D CNN);
 - video: ``(B, 7, 112, 112, 3)`` uint8 RGB; a (2+1)-D CNN whose first op is a 7x7 convolution at

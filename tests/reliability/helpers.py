@@ -15,7 +15,7 @@ def evids(*args: str, cwd: Path | None = None, timeout: float = 600,
     """`evids ARGS` in a fresh interpreter with this tree first on the path."""
     full_env = {**os.environ, "PYTHONPATH": str(ROOT), **(env or {})}
     full_env.pop("EVIDS_DEBUG", None)
-    return subprocess.run([sys.executable, "-c", "from evids.cli import main; main()", *map(str, args)],
+    return subprocess.run([sys.executable, "-c", "from harness.cli import main; main()", *map(str, args)],
                           capture_output=True, text=True, cwd=cwd, timeout=timeout, env=full_env)
 
 

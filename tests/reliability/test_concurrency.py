@@ -41,7 +41,7 @@ def _tagged(tag: str) -> list[int]:
 
 def _start(config: Path, out: Path, tag: str, *extra: str) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(ROOT), "EVIDS_TEST_TAG": tag}
-    return subprocess.Popen([sys.executable, "-c", "from evids.cli import main; main()", "generate", str(config),
+    return subprocess.Popen([sys.executable, "-c", "from harness.cli import main; main()", "generate", str(config),
                              "--out", str(out), "--seed", "3", "--quiet", *extra], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 

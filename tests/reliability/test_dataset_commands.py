@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from evids.cli import main
+from harness.cli import main
 from simulator import files
 from simulator.dataset.generate import MANIFEST, verify_dataset, write_manifest
 from simulator.files import MARKER_FILE, write_hashes

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from evids.experiments.config import QUICK_CONFIG, load_experiment_config
+from harness.experiments.config import QUICK_CONFIG, load_experiment_config
 from scenes.errors import UserInputError
 from tests.reliability.helpers import evids
 

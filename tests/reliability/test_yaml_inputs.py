@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from degradations.errors import SpecError
 from degradations.spec import load_spec
-from evids.experiments.config import load_experiment_config
+from harness.experiments.config import load_experiment_config
 from scenes.errors import UserInputError
 from scenes.loader import load_scenario
 from scenes.yaml_safe import MAX_DEPTH, load_yaml

@@ -57,7 +57,7 @@ def _default_sigint() -> None:
 
 
 def _run_cli(config, out, *extra):
-    return subprocess.Popen([sys.executable, "-c", "from evids.cli import main; main()", "generate", str(config),
+    return subprocess.Popen([sys.executable, "-c", "from harness.cli import main; main()", "generate", str(config),
                              "--out", str(out), "--seed", "5", "--quiet", *extra],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint)
 

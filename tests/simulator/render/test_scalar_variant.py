@@ -48,7 +48,7 @@ def render_tiny(path: str) -> None:
 
 def _unknown_variant_cli(value: str) -> tuple[int, str]:
     env = {**os.environ, "EVIDS_MITSUBA_VARIANT": value, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.run([sys.executable, "-c", "from evids.cli import main; main()", "scenes", "list"],
+    proc = subprocess.run([sys.executable, "-c", "from harness.cli import main; main()", "scenes", "list"],
                           env=env, capture_output=True, text=True, timeout=120)
     return proc.returncode, proc.stderr
 

@@ -133,7 +133,7 @@ def test_cli_render_with_a_refused_bit_rate_exits_2_and_writes_nothing(tmp_path)
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump(data))
     out = tmp_path / "out"
-    result = subprocess.run([sys.executable, "-c", "from evids.cli import main; main()", "render", str(bad),
+    result = subprocess.run([sys.executable, "-c", "from harness.cli import main; main()", "render", str(bad),
                              "--out", str(out)], capture_output=True, text=True, timeout=300, check=False)
     assert result.returncode == 2
     assert "camera_rig.recording.bit_rate_bps" in result.stderr and "Traceback" not in result.stderr

@@ -1,0 +1,237 @@
+"""Crop classifiers of the sim-to-real protocol and the real-vs-synthetic domain classifier.
+
+Training conditions (docs/SIM2REAL.md), all evaluated on the real evaluation half:
+(a) real calibration half; (b) synthetic only; (c) synthetic + real calibration half; (d) few-shot
+real (``few_shot_fraction`` of the calibration clips per class, at least one); (d+) few-shot real +
+synthetic. Each condition is trained with every training seed; its figure is the mean over seeds of
+the balanced accuracy, and its 95 % interval comes from a clip bootstrap of the evaluation half
+(the same clip draws for every seed and condition, so ratios and differences are paired).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from evids.metrics.bootstrap import clustered_bootstrap
+from harness.experiments.sim2real.samples import FrameSample
+
+CONDITIONS = ("a_real", "b_synthetic", "c_synthetic_plus_real", "d_few_shot", "d_plus_few_shot_synthetic")
+CONDITION_LABELS = {
+    "a_real": "(a) real calibration half",
+    "b_synthetic": "(b) synthetic only",
+    "c_synthetic_plus_real": "(c) synthetic + real calibration half",
+    "d_few_shot": "(d) few-shot real",
+    "d_plus_few_shot_synthetic": "(d+) few-shot real + synthetic",
+}
+Z_MDE = 1.959964 + 0.841621        # two-sided 5 % test with 80 % power
+
+
+def balanced_accuracy(y: np.ndarray, pred: np.ndarray) -> float:
+    """Mean recall over the classes present in ``y``."""
+    classes = np.unique(y)
+    if classes.size == 0:
+        return float("nan")
+    return float(np.mean([np.mean(pred[y == c] == c) for c in classes]))
+
+
+@dataclass
+class CropSet:
+    x: np.ndarray          # (n, channels, px, px) float32 in [-0.5, 0.5]
+    y: np.ndarray          # (n,) int
+    clip: np.ndarray       # (n,) str: the clip/sequence id
+
+
+def crop_set(samples: Sequence[FrameSample], classes: Sequence[str], kind: str = "crop") -> CropSet:
+    """Stack target crops (``kind="crop"``) or background patches into a training array."""
+    rows = [(s.crop if kind == "crop" else s.background, classes.index(s.cls), s.clip) for s in samples
+            if s.cls in classes and (s.crop.size if kind == "crop" else s.background is not None)]
+    if not rows:
+        return CropSet(np.zeros((0, 1, 1, 1), np.float32), np.zeros(0, np.int64), np.zeros(0, str))
+    imgs = np.stack([r[0] for r in rows]).astype(np.float32) / 255.0 - 0.5
+    x = imgs[:, None] if imgs.ndim == 3 else imgs.transpose(0, 3, 1, 2)
+    return CropSet(np.ascontiguousarray(x), np.array([r[1] for r in rows], np.int64), np.array([r[2] for r in rows]))
+
+
+def concat(*sets: CropSet) -> CropSet:
+    sets = tuple(s for s in sets if len(s.y))
+    return CropSet(np.concatenate([s.x for s in sets]), np.concatenate([s.y for s in sets]),
+                   np.concatenate([s.clip for s in sets]))
+
+
+def few_shot_clips(samples: Sequence[FrameSample], fraction: float, rng: np.random.Generator) -> set[str]:
+    """``fraction`` of each class's clips (at least one), drawn with ``rng``."""
+    by_class: dict[str, list[str]] = {}
+    for s in samples:
+        clips = by_class.setdefault(s.cls, [])
+        if s.clip not in clips:
+            clips.append(s.clip)
+    chosen: set[str] = set()
+    for cls in sorted(by_class):
+        clips = sorted(by_class[cls])
+        k = max(1, int(round(fraction * len(clips))))
+        chosen.update(rng.choice(clips, size=min(k, len(clips)), replace=False).tolist())
+    return chosen
+
+
+def _net(in_channels: int, n_classes: int):
+    from torch import nn
+
+    # 32 px in: a 5x5 stride-2 stem, then two 3x3 blocks at 8x8 and 4x4 (0.7 M multiply-adds per grey
+    # crop, a quarter of three 3x3 blocks at full resolution: the 2-core budget of the harness)
+    return nn.Sequential(
+        nn.Conv2d(in_channels, 16, 5, stride=2, padding=2), nn.BatchNorm2d(16), nn.ReLU(), nn.MaxPool2d(2),
+        nn.Conv2d(16, 32, 3, padding=1), nn.BatchNorm2d(32), nn.ReLU(), nn.MaxPool2d(2),
+        nn.Conv2d(32, 64, 3, padding=1), nn.BatchNorm2d(64), nn.ReLU(), nn.AdaptiveAvgPool2d(1),
+        nn.Flatten(), nn.Dropout(0.2), nn.Linear(64, n_classes))
+
+
+def train_cnn(train: CropSet, n_classes: int, *, seed: int, steps: int, batch_size: int, learning_rate: float):
+    """A small CNN trained with class-balanced cross-entropy and random flips for a fixed number of
+    optimiser ``steps`` (every condition gets the same number, whatever its size: counted in epochs, a
+    few-shot set of 200 crops got 24 steps and the (d+)-(d) gain measured under-training); the
+    batches cycle through fresh permutations. Deterministic per seed."""
+    import torch
+
+    torch.manual_seed(seed)
+    gen = torch.Generator().manual_seed(seed)
+    net = _net(train.x.shape[1], n_classes)
+    counts = np.bincount(train.y, minlength=n_classes).astype(np.float64)
+    weights = torch.tensor(np.where(counts > 0, counts.sum() / np.maximum(counts, 1) / n_classes, 0.0),
+                           dtype=torch.float32)
+    loss_fn = torch.nn.CrossEntropyLoss(weight=weights)
+    opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
+    x, y = torch.from_numpy(train.x), torch.from_numpy(train.y)
+    n = len(y)
+    batch = max(2, min(batch_size, n))
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=learning_rate, total_steps=max(1, steps))
+    net.train()
+    order = torch.randperm(n, generator=gen)
+    at = 0
+    for _ in range(max(1, steps)):
+        if at + batch > n:
+            order, at = torch.randperm(n, generator=gen), 0
+        idx = order[at:at + batch]
+        at += batch
+        xb = x[idx]
+        flip = torch.rand(len(idx), generator=gen) < 0.5
+        xb = torch.where(flip[:, None, None, None], xb.flip(3), xb)
+        opt.zero_grad()
+        loss_fn(net(xb), y[idx]).backward()
+        opt.step()
+        sched.step()
+    net.eval()
+    return net
+
+
+def predict(net, x: np.ndarray, batch_size: int = 1024) -> np.ndarray:
+    """Class probabilities (n, n_classes)."""
+    import torch
+
+    out = []
+    with torch.no_grad():
+        for start in range(0, len(x), batch_size):
+            out.append(torch.softmax(net(torch.from_numpy(x[start:start + batch_size])), dim=1).numpy())
+    return np.concatenate(out) if out else np.zeros((0, 0), np.float32)
+
+
+def _interval(res) -> dict[str, float]:
+    return {"estimate": res.estimate, "ci_low": res.ci_low, "ci_high": res.ci_high}
+
+
+def _condition_job(name: str, seed: int) -> np.ndarray:
+    """Train condition ``name`` with ``seed`` (one torch thread) and predict the test crops."""
+    import torch
+
+    torch.set_num_threads(1)
+    from simulator.jobs import job_context
+
+    f = job_context()
+    net = train_cnn(f["sets"][name], f["n_classes"], seed=seed, **f["train"])
+    return predict(net, f["test"].x).argmax(1)
+
+
+def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int, *, seeds: Sequence[int], steps: int,
+                        batch_size: int, learning_rate: float, bootstrap: int, rng_seed: int, workers: int = 1,
+                        label: str | None = None) -> dict[str, Any]:
+    """Train every condition x seed (as forked jobs on ``workers`` processes, one torch thread each),
+    evaluate on ``test``; balanced accuracy with clip-bootstrap CIs, the ratio (b)/(a), and the
+    differences (c)-(a) and (d+)-(d) with their minimum detectable differences."""
+    from harness.experiments.pipeline import forked_map
+
+    jobs = [(name, int(seed)) for name, train in sets.items() if len(train.y) for seed in seeds]
+    context = dict(sets=sets, test=test, n_classes=n_classes,
+                   train=dict(steps=steps, batch_size=batch_size, learning_rate=learning_rate))
+    done = {jobs[i]: p for i, p in forked_map(_condition_job, jobs, workers, label, context=context)}
+    preds: dict[str, np.ndarray] = {}      # condition -> (n_seeds, n_test) predicted class
+    per_seed: dict[str, list[float]] = {}
+    for name in dict.fromkeys(n for n, _ in jobs):
+        rows = [done[(name, int(seed))] for seed in seeds]
+        preds[name] = np.stack(rows)
+        per_seed[name] = [balanced_accuracy(test.y, r) for r in rows]
+    names = list(preds)
+    stacked = np.stack([preds[n] for n in names], axis=2) if names else np.zeros((len(seeds), len(test.y), 0))
+
+    def mean_balacc(k: int):
+        return lambda y, p: float(np.mean([balanced_accuracy(y, p[:, s, k]) for s in range(p.shape[1])]))
+
+    # rows = test crops; arrays (n_test, n_seeds, n_conditions)
+    data = stacked.transpose(1, 0, 2)
+    out: dict[str, Any] = {"conditions": {}, "n_test_clips": int(np.unique(test.clip).size),
+                           "n_test_crops": int(len(test.y)),
+                           "train_sizes": {n: int(len(s.y)) for n, s in sets.items()},
+                           "train_clips": {n: int(np.unique(s.clip).size) for n, s in sets.items()}}
+    for k, name in enumerate(names):
+        res = clustered_bootstrap(mean_balacc(k), test.y, data, clusters=test.clip, rng=rng_seed, n_resamples=bootstrap)
+        out["conditions"][name] = {"label": CONDITION_LABELS[name], **_interval(res), "per_seed": per_seed[name]}
+
+    def pair(a: str, b: str, kind: str) -> dict[str, float] | None:
+        if a not in preds or b not in preds:
+            return None
+        ka, kb = names.index(a), names.index(b)
+        if kind == "ratio":
+            stat = lambda y, p: mean_balacc(kb)(y, p) / max(mean_balacc(ka)(y, p), 1e-9)  # noqa: E731
+        else:
+            stat = lambda y, p: mean_balacc(kb)(y, p) - mean_balacc(ka)(y, p)  # noqa: E731
+        res = clustered_bootstrap(stat, test.y, data, clusters=test.clip, rng=rng_seed, n_resamples=bootstrap)
+        d = _interval(res)
+        finite = res.samples[np.isfinite(res.samples)]
+        d["mde"] = float(Z_MDE * finite.std(ddof=1)) if finite.size > 2 else float("nan")
+        return d
+
+    out["ratio_b_over_a"] = pair("a_real", "b_synthetic", "ratio")
+    out["gain_c_minus_a"] = pair("a_real", "c_synthetic_plus_real", "diff")
+    out["gain_dplus_minus_d"] = pair("d_few_shot", "d_plus_few_shot_synthetic", "diff")
+    return out
+
+
+def domain_classifier(real: CropSet, synthetic: CropSet, *, seeds: Sequence[int], steps: int, batch_size: int,
+                      learning_rate: float, rng: np.random.Generator, workers: int = 1) -> dict[str, Any]:
+    """Held-out balanced accuracy of a CNN telling real from synthetic (0.5 = indistinguishable).
+    Split by clip: half of the real clips and half of the synthetic sequences train, the rest test."""
+    def halves(s: CropSet) -> tuple[np.ndarray, np.ndarray]:
+        clips = np.unique(s.clip)
+        train_clips = set(rng.permutation(clips)[: max(1, clips.size // 2)].tolist())
+        mask = np.array([c in train_clips for c in s.clip])
+        return mask, ~mask
+
+    if len(real.y) < 4 or len(synthetic.y) < 4:
+        return {"accuracy": float("nan"), "note": "too few crops"}
+    rm, rt = halves(real)
+    sm, st = halves(synthetic)
+    train = CropSet(np.concatenate([real.x[rm], synthetic.x[sm]]),
+                    np.concatenate([np.zeros(rm.sum(), np.int64), np.ones(sm.sum(), np.int64)]),
+                    np.concatenate([real.clip[rm], synthetic.clip[sm]]))
+    test_x = np.concatenate([real.x[rt], synthetic.x[st]])
+    test_y = np.concatenate([np.zeros(rt.sum(), np.int64), np.ones(st.sum(), np.int64)])
+    from harness.experiments.pipeline import forked_map
+
+    context = dict(sets={"domain": train}, test=CropSet(test_x, test_y, np.zeros(len(test_y), str)), n_classes=2,
+                   train=dict(steps=steps, batch_size=batch_size, learning_rate=learning_rate))
+    done = dict(forked_map(_condition_job, [("domain", int(s)) for s in seeds], workers, context=context))
+    accs = [balanced_accuracy(test_y, done[i]) if len(test_y) else float("nan") for i in range(len(seeds))]
+    return {"accuracy": float(np.mean(accs)), "per_seed": accs, "n_train": int(len(train.y)),
+            "n_test": int(len(test_y)),
+            "test_clips_real": int(np.unique(real.clip[rt]).size),
+            "test_sequences_synthetic": int(np.unique(synthetic.clip[st]).size)}

@@ -1,0 +1,396 @@
+"""`evids sim2real`: generate the synthetic counterpart of the real benchmark, sample both through the
+same functions, and measure the gap (statistics, classifiers a/b/c/d/d+, domain classifier, sheets).
+
+Run folder (``--out``): ``synthetic/<CLASS>/`` (native datasets, cached and resumed), ``sim2real.json``
+(everything measured), ``sim2real.html`` (the report section), ``sheets/*.png``, ``skipped.txt`` (real
+clips left out because they failed the reader's checks, non-strict mode).
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from harness.experiments.sim2real import classify
+from harness.experiments.sim2real.config import Sim2RealConfig, load_config
+from harness.experiments.sim2real.samples import STAT_NAMES, ClipSummary, FrameSample
+from simulator.files import write_atomic
+
+VISUAL_SENSORS = ("ir", "visible")
+
+
+def _real_job(clip, params: dict) -> tuple[list[FrameSample], ClipSummary | None, str | None]:
+    from harness.experiments.sim2real.samples import real_clip_samples
+    from simulator.formats.validation import FormatError
+    from simulator.jobs import job_context
+
+    bench = job_context()
+    try:
+        samples, summary = real_clip_samples(bench, clip, **params)
+        return samples, summary, None
+    except FormatError as err:
+        return [], None, str(err)
+
+
+def _synthetic_job(seq_dir: str, params: dict) -> tuple[list[FrameSample], ClipSummary]:
+    from harness.experiments.sim2real.samples import synthetic_sequence_samples
+
+    return synthetic_sequence_samples(Path(seq_dir), **params)
+
+
+REAL_CACHE_VERSION = 1
+
+
+def _cached_real_samples(out: Path, bench, calls: list, workers: int, progress: bool) -> dict:
+    """The real clips' samples, from ``OUT/cache/real_samples.pkl`` when it was made from the same copy
+    of the benchmark with the same clips and sampling parameters (the real side does not change
+    between simulator versions: reruns skip decoding), else computed and cached."""
+    import hashlib
+    import pickle
+
+    key = hashlib.sha256(json.dumps({"version": REAL_CACHE_VERSION, "benchmark": bench.identity(),
+                                     "calls": [(c.media, p) for c, p in calls]}, sort_keys=True).encode()).hexdigest()
+    path = out / "cache" / "real_samples.pkl"
+    if path.is_file():
+        try:
+            with open(path, "rb") as fh:
+                cached = pickle.load(fh)  # our own cache file, written below
+            if cached.get("key") == key:
+                return cached["results"]
+        except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError):
+            pass  # unreadable or from another version: recompute
+    from harness.experiments.pipeline import forked_map
+
+    results = dict(forked_map(_real_job, calls, workers, "real clips" if progress else None, context=bench))
+    write_atomic(path, pickle.dumps({"key": key, "results": results}, protocol=pickle.HIGHEST_PROTOCOL))
+    return results
+
+
+def _generation_config(cfg: Sim2RealConfig, cls: str, base_dir: Path, quick: bool):
+    """The class's generation config with scenario paths made absolute (and shrunk for --quick)."""
+    from simulator.dataset.config import GenerationConfig
+
+    spec = cfg.visual.classes[cls]
+    data = json.loads(json.dumps(spec.generation))
+    for entry in data.get("mixture", []):
+        path = Path(entry["scenario"])
+        if path.suffix and not path.is_absolute():
+            entry["scenario"] = str((base_dir / path).resolve())
+    data["sequences"] = spec.quick_sequences if quick else spec.sequences
+    data["frames"] = cfg.visual.quick_frames if quick else cfg.visual.frames
+    if quick:
+        data["image_size"] = list(cfg.visual.quick_image_size)
+        data["thermal_image_size"] = list(cfg.visual.quick_thermal_image_size)
+        data["spp"] = 1
+    from scenes.loader import validate_mapping
+
+    return validate_mapping(GenerationConfig, data, f"sim2real config: visual.classes.{cls}.generation")
+
+
+def _stat_summary(values: list[float]) -> dict[str, float] | None:
+    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], np.float64)
+    if v.size == 0:
+        return None
+    q25, q50, q75 = np.percentile(v, [25, 50, 75])
+    return {"median": float(q50), "q25": float(q25), "q75": float(q75), "n": int(v.size)}
+
+
+def statistics_table(samples: list[FrameSample], clips: list[ClipSummary], sensor: str, classes: list[str]) -> dict:
+    """Per class and statistic: real evaluation half, real calibration half and synthetic (median,
+    IQR); ``inside`` says whether the synthetic median lies in the real evaluation half's IQR."""
+    table: dict[str, dict] = {}
+    groups = {"real_evaluation": ("real", "evaluation"), "real_calibration": ("real", "calibration"),
+              "synthetic": ("synthetic", "synthetic")}
+    for cls in classes:
+        table[cls] = {}
+        for stat in (*STAT_NAMES, "absent_fraction"):
+            row: dict[str, Any] = {}
+            for key, (domain, half) in groups.items():
+                if stat == "absent_fraction":
+                    vals = [c.absent_fraction for c in clips if c.sensor == sensor and c.cls == cls
+                            and c.domain == domain and c.half == half]
+                else:
+                    vals = [s.stats.get(stat) for s in samples if s.sensor == sensor and s.cls == cls
+                            and s.domain == domain and s.half == half]
+                row[key] = _stat_summary(vals)
+            real, syn = row["real_evaluation"], row["synthetic"]
+            row["inside"] = None if not (real and syn) else bool(real["q25"] <= syn["median"] <= real["q75"])
+            table[cls][stat] = row
+    return table
+
+
+def _tile(images: list[np.ndarray], px: int, cols: int) -> np.ndarray:
+    import cv2
+
+    tiles = []
+    for im in images[:cols]:
+        im = im if im.ndim == 3 else np.repeat(im[..., None], 3, axis=2)
+        tiles.append(cv2.resize(im, (px, px), interpolation=cv2.INTER_NEAREST))
+    while len(tiles) < cols:
+        tiles.append(np.full((px, px, 3), 40, np.uint8))
+    return np.concatenate(tiles, axis=1)
+
+
+def _label(image: np.ndarray, text: str) -> np.ndarray:
+    import cv2
+
+    bar = np.full((18, image.shape[1], 3), 255, np.uint8)
+    cv2.putText(bar, text, (4, 13), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+    return np.concatenate([bar, image], axis=0)
+
+
+def _pick(items: list, k: int, rng: np.random.Generator) -> list:
+    if len(items) <= k:
+        return items
+    return [items[i] for i in sorted(rng.choice(len(items), size=k, replace=False))]
+
+
+def write_sheets(samples: list[FrameSample], clips: list[ClipSummary], sensor: str, classes: list[str], sheets: Path,
+                 rng: np.random.Generator) -> dict[str, str]:
+    """Contact sheets, real (calibration half) | synthetic per class: target crops, background patches,
+    whole frames. Returns {kind: file name}."""
+    import cv2
+
+    out = {}
+    for kind in ("crops", "backgrounds"):
+        rows = []
+        for cls in classes:
+            for domain, half in (("real", "calibration"), ("synthetic", "synthetic")):
+                pool = [s for s in samples if s.sensor == sensor and s.cls == cls and s.domain == domain
+                        and s.half == half]
+                imgs = [s.crop for s in pool if s.crop.size] if kind == "crops" else \
+                    [s.background for s in pool if s.background is not None]
+                rows.append(_label(_tile(_pick(imgs, 12, rng), 64, 12), f"{cls} {domain}"))
+        name = f"{sensor}_{kind}.png"
+        _write_png(sheets / name, np.concatenate(rows, axis=0))
+        out[kind] = name
+    rows = []
+    for cls in classes:
+        row = []
+        for domain, half in (("real", "calibration"), ("synthetic", "synthetic")):
+            thumbs = [c.thumbnail for c in clips if c.sensor == sensor and c.cls == cls and c.domain == domain
+                      and c.half == half and c.thumbnail is not None]
+            for im in _pick(thumbs, 3, rng) + [None] * (3 - min(3, len(thumbs))):
+                im = np.full((128, 160, 3), 40, np.uint8) if im is None else im
+                im = im if im.ndim == 3 else np.repeat(im[..., None], 3, axis=2)
+                row.append(cv2.resize(im, (160, 128), interpolation=cv2.INTER_AREA))
+        rows.append(_label(np.concatenate(row, axis=1), f"{cls}: real (calibration half) x3 | synthetic x3"))
+    name = f"{sensor}_frames.png"
+    _write_png(sheets / name, np.concatenate(rows, axis=0))
+    out["frames"] = name
+    return out
+
+
+def _write_png(path: Path, rgb: np.ndarray) -> None:
+    import cv2
+
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
+    if not ok:
+        raise RuntimeError(f"could not encode {path.name}")
+    write_atomic(path, buf.tobytes())
+
+
+def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quick: bool = False, strict: bool = False,
+                 progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """Run the whole protocol into ``out`` (see the module docstring); returns the summary."""
+    # every module the run needs is imported here, before the long work: a module loaded lazily at
+    # the end could come from a different version of the files than the rest of the run
+    from harness.experiments.pipeline import forked_map
+    from harness.experiments.sim2real import audio as _audio  # noqa: F401
+    from harness.experiments.sim2real import detect as _detect  # noqa: F401
+    from harness.report.sim2real import write_page
+    from harness.runfolder import write_json
+    from scenes.errors import UserInputError
+    from simulator.dataset.generate import GenerationFailed, generate_dataset
+    from simulator.formats.svanstrom import open_benchmark
+    from simulator.seeding import rng_for
+
+    t0 = time.time()
+    cfg, base_dir = load_config(config_path)
+    bench = open_benchmark(real)
+    vis, tr = cfg.visual, cfg.training
+    seeds = tr.seeds
+    steps = tr.quick_steps if quick else tr.steps
+    classes = list(vis.classes)
+    summary: dict[str, Any] = {"config": cfg.model_dump(mode="json"), "quick": quick, "real": bench.where,
+                               "split_rule": "odd clip numbers = calibration half (train, fit, look); "
+                                             "even = evaluation half (reported numbers)",
+                               "sensors": {}, "timings_s": {}}
+    skipped: list[str] = []
+    sensors = [s for s in cfg.sensors if s in VISUAL_SENSORS]
+
+    # 1. real samples -----------------------------------------------------------------------------
+    t = time.time()
+    params = dict(frames_per_clip=vis.frames_per_real_clip, crop_px=vis.crop_px, context=vis.crop_context,
+                  min_crop_px=vis.min_crop_px, seed=cfg.seed, keep=vis.detector_frames_per_clip)
+    calls = [(clip, params) for s in sensors for clip in bench.clips(s, classes=classes)]
+    samples: list[FrameSample] = []
+    clip_summaries: list[ClipSummary] = []
+    results = _cached_real_samples(out, bench, calls, vis.workers, progress)
+    for i in range(len(calls)):
+        got, summ, err = results[i]
+        if err is not None:
+            if strict:
+                raise UserInputError(f"{err} (--strict stops at the first real clip that fails the reader's checks)")
+            skipped.append(err)
+            continue
+        samples += got
+        clip_summaries.append(summ)
+    summary["timings_s"]["real_samples"] = time.time() - t
+    if skipped:
+        write_atomic(out / "skipped.txt", "\n".join(skipped) + "\n")
+        log(f"[sim2real] {len(skipped)} real clip(s) skipped (listed in {out / 'skipped.txt'})")
+    summary["skipped_clips"] = skipped
+
+    # 2. synthetic counterpart --------------------------------------------------------------------
+    t = time.time()
+    syn_calls = []
+    for k, cls in enumerate(classes if sensors else []):    # audio only: no video to render
+        gen_cfg = _generation_config(cfg, cls, base_dir, quick)
+        folder = out / "synthetic" / cls
+        try:
+            generate_dataset(gen_cfg, folder, cfg.seed + k, workers=1 if quick else vis.workers, progress=progress)
+        except GenerationFailed as exc:   # the other sequences are complete: measure them, report the failures
+            if strict:
+                raise
+            summary.setdefault("synthetic_failures", {})[cls] = exc.failures
+            log(f"[sim2real] {cls}: {len(exc.failures)} synthetic sequence(s) failed to render and are left out "
+                f"(listed in sim2real.json): " + "; ".join(f"{n}: {m}" for n, m in sorted(exc.failures.items())))
+        done = sorted(p for p in (folder / "sequences").iterdir() if p.is_dir() and not p.name.startswith("."))
+        for j, seq in enumerate(done):
+            for sensor in sensors:
+                syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
+    summary["timings_s"]["synthetic_render"] = time.time() - t
+    t = time.time()
+    for _, (got, summ) in forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
+                                     else None):
+        samples += got
+        clip_summaries.append(summ)
+    summary["timings_s"]["synthetic_samples"] = time.time() - t
+
+    # 3. per sensor: statistics, classifiers, domain classifier, sheets ---------------------------
+    sheets = out / "sheets"
+    for sensor in sensors:
+        t = time.time()
+        s_samples = [s for s in samples if s.sensor == sensor]
+        real_cal = [s for s in s_samples if s.domain == "real" and s.half == "calibration"]
+        real_eval = [s for s in s_samples if s.domain == "real" and s.half == "evaluation"]
+        synthetic = [s for s in s_samples if s.domain == "synthetic"]
+        rng = rng_for(cfg.seed, "sim2real", 7, VISUAL_SENSORS.index(sensor))
+        few = classify.few_shot_clips(real_cal, tr.few_shot_fraction, rng)
+        set_a = classify.crop_set(real_cal, classes)
+        set_b = classify.crop_set(synthetic, classes)
+        set_d = classify.crop_set([s for s in real_cal if s.clip in few], classes)
+        sets = {"a_real": set_a, "b_synthetic": set_b, "c_synthetic_plus_real": classify.concat(set_b, set_a),
+                "d_few_shot": set_d, "d_plus_few_shot_synthetic": classify.concat(set_b, set_d)}
+        test = classify.crop_set(real_eval, classes)
+        cond = classify.evaluate_conditions(sets, test, len(classes), seeds=seeds, steps=steps,
+                                            batch_size=tr.batch_size, learning_rate=tr.learning_rate,
+                                            bootstrap=min(tr.bootstrap, 200) if quick else tr.bootstrap,
+                                            rng_seed=cfg.seed,
+                                            workers=vis.workers, label=f"{sensor}: crop classifiers" if progress
+                                            else None)
+        domain = {}
+        for kind in ("crop", "background"):
+            domain[kind] = classify.domain_classifier(classify.crop_set(real_cal, classes, kind),
+                                                      classify.crop_set(synthetic, classes, kind),
+                                                      seeds=seeds, steps=steps, batch_size=tr.batch_size,
+                                                      learning_rate=tr.learning_rate, workers=vis.workers,
+                                                      rng=rng_for(cfg.seed, "sim2real", 8,
+                                                                  VISUAL_SENSORS.index(sensor)))
+        if vis.detector_frames_per_clip:
+            from harness.experiments.sim2real import detect
+
+            s_clips = [c for c in clip_summaries if c.sensor == sensor]
+            train_sets = {"real": [c for c in s_clips if c.domain == "real" and c.half == "calibration"],
+                          "synthetic": [c for c in s_clips if c.domain == "synthetic"]}
+            detector = detect.run_detector(train_sets,
+                                           [c for c in s_clips if c.domain == "real" and c.half == "evaluation"],
+                                           sensor, seeds=seeds, steps=vis.quick_detector_steps if quick
+                                           else vis.detector_steps,
+                                           folder=out / "detector" / sensor, workers=vis.workers,
+                                           label=f"{sensor}: detectors" if progress else None)
+        else:
+            detector = {"note": "off (visual.detector_frames_per_clip: 0)"}
+        files = write_sheets(s_samples, [c for c in clip_summaries if c.sensor == sensor], sensor, classes, sheets,
+                             rng_for(cfg.seed, "sim2real", 9, VISUAL_SENSORS.index(sensor)))
+        summary["sensors"][sensor] = {
+            "classes": classes,
+            "n_clips": {"real_calibration": len({s.clip for s in real_cal}),
+                        "real_evaluation": len({s.clip for s in real_eval}),
+                        "synthetic": len({s.clip for s in synthetic})},
+            "statistics": statistics_table(s_samples, clip_summaries, sensor, classes),
+            "classifier": cond, "domain_classifier": domain, "detector": detector, "sheets": files,
+        }
+        summary["timings_s"][f"{sensor}_models"] = time.time() - t
+        write_json(out / "sim2real.json", summary)     # partial results survive a later failure
+
+    if "audio" in cfg.sensors:
+        t = time.time()
+        summary["sensors"]["audio"] = _audio_track(bench, cfg, out, quick, progress)
+        summary["timings_s"]["audio"] = time.time() - t
+
+    summary["timings_s"]["total"] = time.time() - t0
+    write_json(out / "sim2real.json", summary)
+    write_page(out, summary)
+    bench.close()
+    return summary
+
+
+def _audio_track(bench, cfg: Sim2RealConfig, out: Path, quick: bool, progress: bool) -> dict[str, Any]:
+    """Real audio clips of both halves and the synthetic clips of the config, through the audio track."""
+    from harness.experiments.sim2real import audio
+
+    real = audio.real_audio_clips(bench)
+    synthetic = audio.synthetic_audio_clips(cfg.audio, cfg.seed, quick=quick)
+    return audio.run_audio_track(real, synthetic, seeds=cfg.training.seeds, quick=quick, out_dir=out / "sheets",
+                                 progress=progress)
+
+
+def format_table(summary: dict[str, Any]) -> str:
+    """The plain-text table the command prints."""
+    lines = []
+    for sensor, res in summary["sensors"].items():
+        if sensor not in VISUAL_SENSORS:
+            for model, r in res.get("classifier", {}).items():
+                lines.append(f"audio ({model}): ROC-AUC on the real evaluation half")
+                for cond, v in r.items():
+                    if isinstance(v, dict):
+                        lines.append(f"  {v.get('description', cond):<52} {v['roc_auc']:.3f} "
+                                     f"[{v['roc_auc_ci95'][0]:.3f}, {v['roc_auc_ci95'][1]:.3f}]")
+                if "ratio_synthetic_over_real_auc" in r:
+                    lines.append(f"  ratio (b)/(a) {r['ratio_synthetic_over_real_auc']:.3f}; helicopter windows called "
+                                 "drone by (b) "
+                                 f"{100 * (r['b_synthetic'].get('helicopter_called_drone') or 0):.0f} %")
+            continue
+        c = res["classifier"]
+        lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({c['n_test_clips']} clips, "
+                     f"{c['n_test_crops']} crops; chance {1 / len(res['classes']):.2f})")
+        for name, r in c["conditions"].items():
+            lines.append(f"  {classify.CONDITION_LABELS[name]:<40} {r['estimate']:.3f} [{r['ci_low']:.3f}, "
+                         f"{r['ci_high']:.3f}]")
+        for key, label in (("ratio_b_over_a", "ratio (b)/(a)"), ("gain_c_minus_a", "(c) - (a)"),
+                           ("gain_dplus_minus_d", "(d+) - (d)")):
+            r = c.get(key)
+            if r:
+                f = "{:.3f}" if key == "ratio_b_over_a" else "{:+.3f}"
+                lines.append(f"  {label:<40} {f.format(r['estimate'])} [{f.format(r['ci_low'])}, "
+                             f"{f.format(r['ci_high'])}]"
+                             f" MDE {r['mde']:.3f}")
+        det = res.get("detector", {})
+        for name, r in det.get("conditions", {}).items():
+            if "ap50" in r:
+                lines.append(f"  detector AP50, trained on {name:<17} {r['ap50']:.3f} (per seed "
+                             + ", ".join(f"{v:.3f}" for v in r["per_seed"]) + ")")
+        if "ratio_synthetic_over_real" in det:
+            lines.append(f"  detector AP50 ratio synthetic / real     {det['ratio_synthetic_over_real']:.3f}")
+        for kind, d in res["domain_classifier"].items():
+            lines.append(f"  domain classifier, {kind + 's':<23} {d['accuracy']:.3f} (0.5 = indistinguishable)")
+        inside = [(cls, st) for cls, rows in res["statistics"].items() for st, row in rows.items()
+                  if row["inside"] is not None]
+        n_in = sum(res["statistics"][cls][st]["inside"] for cls, st in inside)
+        lines.append(f"  statistics: synthetic median inside the real IQR for {n_in} of {len(inside)}")
+    return "\n".join(lines)

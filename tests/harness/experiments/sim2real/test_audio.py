@@ -1,0 +1,199 @@
+"""The sim2real audio track: statistics on hand-made signals, synthetic clips, the quick track."""
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+
+from harness.experiments.sim2real import audio as A
+from scenes.errors import UserInputError
+
+SR = 44_100
+
+
+def _tone(f0: float, n_harm: int, seconds: float = 10.0, noise: float = 1e-3, seed: int = 0) -> np.ndarray:
+    t = np.arange(int(seconds * SR)) / SR
+    x = sum(0.3 / k * np.sin(2 * np.pi * f0 * k * t) for k in range(1, n_harm + 1))
+    return x + noise * np.random.default_rng(seed).standard_normal(t.size)
+
+
+def test_harmonic_tone_gives_its_fundamental_and_harmonics():
+    stats = A.audio_statistics(_tone(400.0, 5), SR)
+    assert len(stats["segments"]) == 2
+    for seg in stats["segments"]:
+        assert seg["pitched"] is True
+        assert seg["f0_hz"] == pytest.approx(400.0, rel=0.01)
+        assert seg["n_harmonics"] == 5
+        assert seg["level_fluctuation_db"] < 0.05          # a steady tone
+        # centroid of lines with amplitudes 0.3/k: sum k f0 (1/k^2) / sum 1/k^2 = f0 H5 / H5^(2)
+        k = np.arange(1, 6)
+        assert seg["spectral_centroid_hz"] == pytest.approx(400 * np.sum(1 / k) / np.sum(1 / k ** 2), rel=0.02)
+
+
+def test_white_noise_is_unpitched_flat_and_centred_at_a_quarter_of_fs():
+    x = 0.1 * np.random.default_rng(1).standard_normal(10 * SR)
+    for seg in A.audio_statistics(x, SR)["segments"]:
+        assert seg["pitched"] is False
+        assert seg["n_harmonics"] == 0
+        assert seg["spectral_centroid_hz"] == pytest.approx(SR / 4, rel=0.02)
+        bands = np.array(seg["third_octave_dbfs"])
+        # white noise: band power ~ bandwidth, +1 dB per 1/3 octave; 26 bands 50 Hz - 16 kHz
+        slope = np.polyfit(np.arange(bands.size), bands, 1)[0]
+        assert slope == pytest.approx(1.0, abs=0.1)
+        # total: 0.01 full-scale^2 over 22.05 kHz; the 1 kHz band (231.6 Hz wide) holds 0.01 x 231.6 / 22050
+        assert bands[13] == pytest.approx(10 * np.log10(0.01 * 1000 * (10 ** 0.05 - 10 ** -0.05) / (SR / 2)), abs=1.0)
+
+
+def test_full_scale_sine_reads_minus_3_dbfs_in_its_band():
+    t = np.arange(5 * SR) / SR
+    seg = A.audio_statistics(np.sin(2 * np.pi * 1000.0 * t), SR)["segments"][0]
+    bands = np.array(seg["third_octave_dbfs"])
+    assert A.NOMINAL_CENTRES_HZ[13] == 1000
+    assert bands[13] == pytest.approx(-3.01, abs=0.1)
+    assert np.max(np.delete(bands, [12, 13, 14])) < -40
+    assert seg["level_dbfs"] == pytest.approx(-3.01, abs=0.01)
+
+
+def test_level_fluctuation_is_the_std_of_100_ms_levels():
+    x = np.random.default_rng(2).standard_normal(5 * SR)
+    frame = int(0.1 * SR)
+    gain = np.where((np.arange(x.size) // frame) % 2 == 0, 1.0, 10 ** (12 / 20))   # alternate L, L + 12 dB
+    seg = A.audio_statistics(x * gain, SR)["segments"][0]
+    assert seg["level_fluctuation_db"] == pytest.approx(6.0, abs=0.2)
+
+
+def test_roc_auc_and_balanced_accuracy_by_hand():
+    y = np.array([0, 0, 1, 1])
+    s = np.array([0.1, 0.4, 0.35, 0.8])
+    assert A.roc_auc(y, s) == pytest.approx(0.75)            # pairs (pos > neg): 0.35>0.1, 0.8>0.1, 0.8>0.4
+    assert A.balanced_accuracy(y, s) == pytest.approx(0.75)  # negatives 2/2 right, positives 1/2
+    assert np.isnan(A.roc_auc(np.ones(3), np.arange(3.0)))
+
+
+def test_balance_weights_equalise_domains_and_labels():
+    y = np.array([1, 1, 1, 0, 1, 0, 0, 0, 0])
+    d = np.array([0, 0, 0, 0, 1, 1, 1, 1, 1])
+    w = A._balance_weights(y, d)
+    for dom in (0, 1):
+        for lab in (0, 1):
+            assert w[(d == dom) & (y == lab)].sum() == pytest.approx(w.sum() / 4)
+
+
+def test_synthetic_clips_are_deterministic_per_seed_and_labelled():
+    cfg = {"duration_s": 1.0, "drone_kinds": ["quadcopter"], "drone_range_m": [[10.0, 20.0]]}
+    a = A.synthetic_audio_clips(cfg, 3, 1)
+    b = A.synthetic_audio_clips(cfg, 3, 1)
+    c = A.synthetic_audio_clips(cfg, 4, 1)
+    assert [k.cls for k in a] == ["DRONE", "HELICOPTER", "BACKGROUND"]     # the helicopter source exists
+    assert {k.half for k in a} == {"synthetic"}
+    for x, y, z in zip(a, b, c):
+        assert x.samples.dtype == np.float32 and x.samples.size == SR and x.sample_rate == SR
+        assert x.samples.tobytes() == y.samples.tobytes()
+        assert x.samples.tobytes() != z.samples.tobytes()
+        assert np.all(np.isfinite(x.samples)) and np.max(np.abs(x.samples)) > 0
+
+
+@pytest.mark.parametrize("bad, field", [({"drone_range_m": [[50.0, 10.0]]}, "drone_range_m[0]"),
+                                        ({"drone_kinds": ["zeppelin"]}, "drone_kinds"),
+                                        ({"duration_s": -1}, "duration_s"), ({"colour": 1}, "colour")])
+def test_bad_config_names_the_field(bad, field):
+    with pytest.raises(UserInputError, match=field.replace("[", r"\[").replace("]", r"\]")):
+        A.synthetic_audio_clips(bad, 0, 1)
+
+
+def _mini_clip(cls: str, number: int, half: str, seconds: float = 2.0) -> A.AudioClip:
+    rng = np.random.default_rng(number * 7 + len(half))
+    noise = 0.02 * rng.standard_normal(int(seconds * SR))
+    if cls == "DRONE":
+        x = _tone(rng.uniform(150, 400), 8, seconds, 0.0, number) + noise
+    elif cls == "HELICOPTER":
+        t = np.arange(noise.size) / SR
+        x = noise * (1 + 0.9 * np.sin(2 * np.pi * 20 * t)) + 0.05 * np.sin(2 * np.pi * 60 * t)
+    else:
+        x = noise
+    return A.AudioClip(f"{cls}_{number:03d}", cls, number, x.astype(np.float32), SR, half)
+
+
+def test_quick_track_runs_under_30_s_and_separates_easy_classes(tmp_path):
+    real = [_mini_clip(cls, n, "calibration" if n % 2 else "evaluation") for cls in A.CLASSES for n in range(1, 7)]
+    syn = [_mini_clip(cls, 100 + n, "synthetic") for cls in A.CLASSES for n in range(3)]
+    start = time.process_time()              # CPU time: the shared test machine's load does not count
+    summary = A.run_audio_track(real, syn, [0, 1, 2], True, tmp_path, False)
+    assert time.process_time() - start < 30.0
+    assert (tmp_path / "audio_spectrograms.png").read_bytes()[:4] == b"\x89PNG"
+    for model in A.MODELS:
+        res = summary["classifier"][model]
+        assert set(A.CONDITIONS) <= set(res)
+        assert res["a_real"]["roc_auc"] > 0.9                        # tones vs noise: trivially separable
+        lo, hi = res["a_real"]["roc_auc_ci95"]
+        assert lo <= hi <= 1.0
+        assert 0.0 <= res["b_synthetic"]["helicopter_called_drone"] <= 1.0
+        assert res["ratio_synthetic_over_real_auc"] == pytest.approx(res["b_synthetic"]["roc_auc"]
+                                                                     / res["a_real"]["roc_auc"])
+    drone = summary["statistics"]["DRONE"]["evaluation"]
+    assert drone["f0_hz"]["real_q25"] >= 140 and drone["pitched"]["real_median"] == 1.0
+    assert summary["statistics"]["BACKGROUND"]["evaluation"]["pitched"]["real_median"] == 0.0
+
+
+def test_read_wav_clips_splits_odd_and_even(tmp_path):
+    import soundfile
+
+    stereo = np.stack([np.full(SR // 2, 0.25), np.full(SR // 2, -0.05)], axis=1)
+    for name in ("DRONE_001", "DRONE_002", "HELICOPTER_013", "notes_1"):
+        soundfile.write(str(tmp_path / f"{name}.wav"), stereo, SR, subtype="PCM_16")
+    clips = A.read_wav_clips(tmp_path)
+    assert [(c.name, c.cls, c.number, c.half) for c in clips] == [
+        ("DRONE_001", "DRONE", 1, "calibration"), ("DRONE_002", "DRONE", 2, "evaluation"),
+        ("HELICOPTER_013", "HELICOPTER", 13, "calibration")]
+    assert clips[0].samples.dtype == np.float32 and np.allclose(clips[0].samples, 0.1, atol=1e-4)   # stereo mean
+
+
+def test_clip_count_from_config_and_quick():
+    cfg = {"duration_s": 1.0, "n_per_class": 2, "quick_n_per_class": 1, "drone_range_m": [[10.0, 20.0]]}
+    assert len(A.synthetic_audio_clips(cfg, 0, quick=True)) == 3
+    assert [c.number for c in A.synthetic_audio_clips(cfg, 0) if c.cls == "DRONE"] == [1, 2]
+
+
+def test_real_audio_clips_from_a_benchmark_reader():
+    class Clip:
+        def __init__(self, cls, number):
+            self.cls, self.number, self.name = cls, number, f"{cls}_{number:03d}"
+            self.half = "calibration" if number % 2 else "evaluation"
+
+    class Bench:
+        def clips(self, sensor):
+            assert sensor == "audio"
+            return [Clip("DRONE", 1), Clip("BACKGROUND", 4)]
+
+        def audio(self, clip):
+            return np.full(SR, 0.5 if clip.cls == "DRONE" else 0.1, dtype=np.float32), SR
+
+    clips = A.real_audio_clips(Bench())
+    assert [(c.name, c.cls, c.half, round(float(c.samples[0]), 6)) for c in clips] == [
+        ("DRONE_001", "DRONE", "calibration", 0.5), ("BACKGROUND_004", "BACKGROUND", "evaluation", 0.1)]
+
+
+def test_audio_only_protocol_renders_no_video(tmp_path):
+    pytest.importorskip("mcos_decoder")
+    pytest.importorskip("av")
+    import subprocess
+    import sys
+
+    from harness.experiments.sim2real.config import DEFAULT_CONFIG
+    from tests.simulator.formats.svanstrom_miniature import write_miniature
+
+    real = write_miniature(tmp_path / "real", numbers=(1, 2, 3, 4), n_frames=4, ir_size=(64, 48),
+                           visible_size=(96, 80), audio_s=2.0)
+    text = DEFAULT_CONFIG.read_text().replace("sensors: [ir, visible, audio]", "sensors: [audio]")
+    assert "sensors: [audio]" in text
+    config = tmp_path / "audio_only.yaml"          # its scenario paths are never opened: no video classes run
+    config.write_text(text)
+    proc = subprocess.run([sys.executable, "-c", "from harness.cli import main; main()", "sim2real", "--real",
+                           str(real), "--config", str(config), "--out", str(tmp_path / "run"), "--quick",
+                           "--no-progress"], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert not (tmp_path / "run" / "synthetic").exists()                   # no video rendered
+    summary = json.loads((tmp_path / "run" / "sim2real.json").read_text())
+    assert list(summary["sensors"]) == ["audio"] and summary["sensors"]["audio"]["n_clips"]["evaluation"] > 0

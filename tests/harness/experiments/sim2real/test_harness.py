@@ -1,0 +1,145 @@
+"""`evids sim2real --quick` end to end on a miniature of the Svanström layout (no real data): the run
+folder holds the summary, the report page and the sheets; a damaged real clip is skipped and listed
+(or stops the run with --strict); bad input exits 2. Plus known-answer tests of the statistics and of
+the classifier bookkeeping."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness.experiments.sim2real import classify, samples
+from harness.experiments.sim2real.harness import statistics_table
+
+pytest.importorskip("mcos_decoder")
+pytest.importorskip("av")
+
+
+def _cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", "from harness.cli import main; main()", *args], capture_output=True,
+                          text=True, cwd=cwd, timeout=900)
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    from tests.simulator.formats.svanstrom_miniature import write_miniature
+
+    root = tmp_path_factory.mktemp("s2r")
+    real = write_miniature(root / "real", numbers=(1, 2, 3, 4), n_frames=6, ir_size=(64, 48), visible_size=(96, 80),
+                           audio_s=2.0)
+    (real / "Data" / "Video_IR" / "IR_BIRD_004_LABELS.mat").unlink()      # a damaged clip: no labels
+    out = root / "run"
+    proc = _cli("sim2real", "--real", str(real), "--out", str(out), "--quick", "--no-progress")
+    return real, out, proc
+
+
+def test_quick_run_writes_summary_page_and_sheets(quick_run):
+    real, out, proc = quick_run
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    summary = json.loads((out / "sim2real.json").read_text())
+    assert summary["quick"] is True and set(summary["sensors"]) == {"ir", "visible", "audio"}
+    for sensor in ("ir", "visible"):
+        res = summary["sensors"][sensor]
+        conds = res["classifier"]["conditions"]
+        assert list(conds) == list(classify.CONDITIONS)
+        assert all(0.0 <= c["estimate"] <= 1.0 and c["ci_low"] <= c["estimate"] <= c["ci_high"] for c in conds.values())
+        assert res["n_clips"]["real_evaluation"] == (7 if sensor == "ir" else 8) and res["n_clips"]["synthetic"] == 4
+        # the calibration half trains, the evaluation half tests: no clip in both
+        assert res["classifier"]["train_clips"]["a_real"] == res["n_clips"]["real_calibration"]
+        assert res["statistics"]["DRONE"]["background"]["real_evaluation"]["n"] > 0
+        for name in res["sheets"].values():
+            assert (out / "sheets" / name).stat().st_size > 1000
+    # IR_BIRD_004 (even: evaluation half) lost its labels: skipped and listed
+    assert "IR_BIRD_004" in (out / "skipped.txt").read_text() and len(summary["skipped_clips"]) == 1
+    page = (out / "sim2real.html").read_text()
+    assert "Sim-to-real" in page and "(b) synthetic only" in page and "data:image/png;base64" in page
+    assert "ratio (b)/(a)" in proc.stdout
+    audio = summary["sensors"]["audio"]
+    assert set(audio["classifier"]) == {"cnn", "logreg"} and audio["n_clips"]["evaluation"] == 6
+    assert (out / "sheets" / audio["figure"]).stat().st_size > 1000 and "helicopter windows called drone" in page
+
+
+def test_strict_stops_at_the_damaged_clip_and_bad_input_exits_2(quick_run, tmp_path):
+    real, _, _ = quick_run
+    proc = _cli("sim2real", "--real", str(real), "--out", str(tmp_path / "strict"), "--quick", "--strict",
+                "--no-progress")
+    assert proc.returncode == 2 and "IR_BIRD_004" in proc.stderr
+    proc = _cli("sim2real", "--real", str(tmp_path / "nowhere"), "--out", str(tmp_path / "x"))
+    assert proc.returncode == 2 and "--real" in proc.stderr
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: x\nvisual: {classes: {DRONE: {generation: {}, sequences: 1}, KITE: {generation: {}, "
+                   "sequences: 1}}}\n")
+    proc = _cli("sim2real", "--real", str(real), "--out", str(tmp_path / "y"), "--config", str(bad))
+    assert proc.returncode == 2 and "KITE" in proc.stderr
+
+
+def test_frame_statistics_known_answers():
+    img = np.full((40, 40), 100, np.uint8)
+    img[30:] = 140                                 # warm ground in the bottom quarter
+    img[10:14, 10:14] = 160                        # a 4x4 target, 60 above its ring
+    prev = img.copy()
+    prev[0, 0] = 110                               # one changed pixel: the robust temporal noise stays 0
+    st = samples.frame_statistics(img, (10, 10, 4, 4), prev)
+    assert st["contrast"] == pytest.approx(60.0) and st["peak"] == pytest.approx(60.0)
+    assert st["background"] == 100.0 and st["row_gradient"] == pytest.approx(40.0)
+    assert st["temporal_noise"] == 0.0 and st["box_w_px"] == 4.0
+    rng = np.random.default_rng(0)
+    noisy = np.clip(100 + rng.normal(0, 4, (200, 200)), 0, 255).astype(np.uint8)
+    noisy2 = np.clip(100 + rng.normal(0, 4, (200, 200)), 0, 255).astype(np.uint8)
+    assert samples.frame_statistics(noisy2, None, noisy)["temporal_noise"] == pytest.approx(4.0, rel=0.1)
+
+
+def test_crop_is_centred_and_edges_replicated():
+    img = np.zeros((20, 20), np.uint8)
+    img[9:11, 9:11] = 255
+    crop = samples.target_crop(img, (9, 9, 2, 2), out_px=8, context=4.0, min_side_px=8)
+    assert crop.shape == (8, 8) and crop[3:5, 3:5].min() == 255 and crop[0, 0] == 0
+    edge = samples.crop_around(np.arange(100, dtype=np.uint8).reshape(10, 10), (0, 0), 4, 4)
+    assert edge.shape == (4, 4) and edge[0, 0] == 0
+
+
+def test_balanced_accuracy_and_statistics_table_inside_flag():
+    y = np.array([0, 0, 0, 0, 1, 1])
+    assert classify.balanced_accuracy(y, np.array([0, 0, 0, 0, 0, 1])) == pytest.approx(0.75)
+    mk = lambda domain, half, v: samples.FrameSample(domain, "ir", "DRONE", f"{domain}{v}", half, 0,  # noqa: E731
+                                                     np.zeros((2, 2), np.uint8), None, {"contrast": v})
+    rows = [mk("real", "evaluation", v) for v in (1.0, 2.0, 3.0, 4.0, 5.0)] + [mk("synthetic", "synthetic", 3.5)]
+    table = statistics_table(rows, [], "ir", ["DRONE"])
+    assert table["DRONE"]["contrast"]["inside"] is True
+    assert table["DRONE"]["contrast"]["real_evaluation"]["q25"] == 2.0
+    rows[-1] = mk("synthetic", "synthetic", 50.0)
+    assert statistics_table(rows, [], "ir", ["DRONE"])["DRONE"]["contrast"]["inside"] is False
+
+
+def test_few_shot_takes_a_fraction_of_each_class_at_least_one():
+    rows = [samples.FrameSample("real", "ir", cls, f"{cls}{k}", "calibration", 0, np.zeros(1, np.uint8), None)
+            for cls, n in (("DRONE", 20), ("BIRD", 3)) for k in range(n)]
+    chosen = classify.few_shot_clips(rows, 0.1, np.random.default_rng(0))
+    assert sum(c.startswith("DRONE") for c in chosen) == 2 and sum(c.startswith("BIRD") for c in chosen) == 1
+
+
+@pytest.mark.parametrize("n_crops", [5, 300])
+def test_every_condition_gets_the_same_number_of_optimiser_steps(n_crops, monkeypatch):
+    """Counted in steps, not epochs: a few-shot set of 5 crops and a set of 300 both get ``steps``
+    updates (counted in epochs, the small set got a tenth of the training)."""
+    import torch
+
+    from harness.experiments.sim2real import classify
+
+    calls = []
+    original = torch.optim.Adam.step
+
+    def counting_step(self, *args, **kwargs):
+        calls.append(1)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(torch.optim.Adam, "step", counting_step)
+    rng = np.random.default_rng(0)
+    crops = classify.CropSet(rng.normal(size=(n_crops, 1, 16, 16)).astype(np.float32),
+                             rng.integers(0, 2, n_crops), np.array([f"c{i % 3}" for i in range(n_crops)]))
+    classify.train_cnn(crops, 2, seed=0, steps=7, batch_size=64, learning_rate=1e-3)
+    assert len(calls) == 7
