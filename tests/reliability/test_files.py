@@ -146,7 +146,7 @@ def test_atomic_path_leaves_the_old_file_untouched_and_no_temporary_on_failure(t
 def test_no_rename_into_place_outside_the_atomic_write_helper():
     """Every file is published through simulator.files (write_atomic / atomic_path / atomic_folder)."""
     root = Path(__file__).resolve().parents[2]
-    offenders = [f"{p.relative_to(root)}:{n}" for pkg in ("scenes", "simulator", "degradations", "evids")
+    offenders = [f"{p.relative_to(root)}:{n}" for pkg in ("scenes", "simulator", "degradations", "evids", "harness")
                  for p in sorted((root / pkg).rglob("*.py")) if p != root / "simulator" / "files.py"
                  for n, line in enumerate(p.read_text().splitlines(), 1)
                  if "os.replace(" in line or "tmp.replace(" in line]

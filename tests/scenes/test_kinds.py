@@ -31,7 +31,7 @@ def test_no_other_module_gives_a_drone_kind_a_size():
     """A dict literal mapping a drone kind to a number between 5 cm and 5 m (a size, not a level in
     dB or a temperature) anywhere but scenes/kinds.py is a second table of sizes."""
     found = []
-    for pkg in ("scenes", "simulator", "evids", "degradations"):
+    for pkg in ("scenes", "simulator", "evids", "harness", "degradations"):
         for path in sorted((ROOT / pkg).rglob("*.py")):
             if path == ROOT / "scenes" / "kinds.py":
                 continue

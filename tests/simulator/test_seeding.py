@@ -10,7 +10,7 @@ import numpy as np
 from simulator.seeding import STREAMS, rng_for
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ("scenes", "simulator", "evids", "degradations")
+PACKAGES = ("scenes", "simulator", "evids", "harness", "degradations")
 
 
 def _calls(name: str):

@@ -12,7 +12,7 @@ from harness.cli import main, require_module
 from scenes.errors import UserInputError
 from simulator.formats.trident import assign_splits
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def _run(capsys, *args: str) -> tuple[int, str, str]:
