@@ -813,7 +813,7 @@ class AmbienceDistribution(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    wind_db: _Span = (24.0, 42.0)
+    wind_db: _Span = (16.0, 34.0)          # 24-42 until 2026-12-03: backgrounds 7-10 dB too loud at 50-160 Hz
     gust_depth: _Span = (0.5, 1.0)
     traffic_probability: float = Field(default=0.4, ge=0.0, le=1.0)
     traffic_db: _Span = (30.0, 46.0)

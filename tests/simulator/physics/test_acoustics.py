@@ -323,7 +323,7 @@ def test_helicopter_level_low_frequency_weight_and_blade_passing_modulation():
 def test_ambience_draws_skip_beds_that_are_never_on():
     base = ac.AmbienceDistribution(rustle_probability=0.0, aircraft_probability=0.0)
     a = ac.draw_ambience(np.random.default_rng(5), base)
-    assert a.rustle_db is None and a.aircraft_db is None and 24.0 <= a.wind_db <= 42.0
+    assert a.rustle_db is None and a.aircraft_db is None and 16.0 <= a.wind_db <= 34.0
     # a bed with probability 0 takes no draws: appending one at the end leaves the others' draws alone
     with_rustle = ac.draw_ambience(np.random.default_rng(5), base.model_copy(update={"rustle_probability": 1.0}))
     assert with_rustle.rustle_db is not None
