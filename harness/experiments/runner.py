@@ -280,14 +280,22 @@ COMPARISONS = (
 )
 
 
-def compare(ctx: Context, name: str, correct_a: np.ndarray, correct_b: np.ndarray, clusters: np.ndarray) -> dict:
+def comparison_id(a: str, b: str) -> str:
+    """The stable id of the paired comparison A - B (condition keys): what the report looks rows up by;
+    the display name may change, the id does not."""
+    return f"{a} vs {b}"
+
+
+def compare(ctx: Context, name: str, correct_a: np.ndarray, correct_b: np.ndarray, clusters: np.ndarray,
+            comparison: str | None = None) -> dict:
     """Paired accuracy comparison A - B on per-row correctness (averaged over training runs and
     noise seeds): scene-clustered sign-flip permutation p, MDE at 80 % power, clustered bootstrap CI,
     and the verdict of evids.metrics.significance.comparison_verdict ("A beats B", "B beats A",
     "no difference", "undecided")."""
     bc = ctx.cfg.bootstrap
     n_cl = len(set(clusters.tolist())) if len(clusters) else 0
-    row = {"comparison": name, "n_segments": len(clusters), "n_clusters": n_cl, "cluster_unit": "scene"}
+    row = {"comparison": name, "id": comparison or name, "n_segments": len(clusters), "n_clusters": n_cl,
+           "cluster_unit": "scene"}
     if len(clusters) == 0 or n_cl < 2:
         return {**row, "delta_accuracy": None, "ci_low": None, "ci_high": None, "p_value": None,
                 "p_permutation": None, "mde": None, "verdict": UNDECIDED}
@@ -379,8 +387,8 @@ def stage_evaluate(ctx: Context) -> dict:
                      "n_seeds": len(cfg.protocol.noise_seeds), "n_evaluations": int(accs.size),
                      "accuracy_std_training": float(np.std(by_run)), **agg})
     mean_correct = {k: np.mean(v, axis=0) for k, v in correct.items()}
-    comps = [compare(ctx, name, mean_correct[a], mean_correct[b], scn) for a, b, name in COMPARISONS
-             if a in mean_correct and b in mean_correct]
+    comps = [compare(ctx, name, mean_correct[a], mean_correct[b], scn, comparison_id(a, b))
+             for a, b, name in COMPARISONS if a in mean_correct and b in mean_correct]
     with atomic_path(ctx.run_dir / "predictions.npz", suffix=".npz") as tmp:
         np.savez_compressed(tmp, labels=y, clip_ids=cid.astype(str), scene_ids=scn.astype(str),
                             **{f"{k}__probs": p.probs for k, p in preds0.items()},
@@ -604,7 +612,8 @@ def _swap_program(ctx: Context, prog) -> dict:
               "bites" if flip >= cc.min_flip_rate else "weak (flips fewer than the target share)")
     ds_c = np.mean([r["ds"] for r in runs_c], axis=0)
     av_c = np.mean([r["average"] for r in runs_c], axis=0)
-    comp = compare(ctx, f"DS vs average, {prog.key} targeted segments", ds_c, av_c, scn[T])
+    comp = compare(ctx, f"DS vs average, {prog.key} targeted segments", ds_c, av_c, scn[T],
+                   f"conflict {prog.key}: ds vs average")
     edges = np.linspace(0.0, 1.0, 21)
 
     def mean_or_none(v):

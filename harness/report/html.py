@@ -102,11 +102,25 @@ def _stat(x: dict | None) -> str:
             f"permutation p = {x['p_permutation']:.3f}, MDE(80%) = {100 * x['mde']:.2f} pp, {x['n_clusters']} scenes")
 
 
+# run folders written before the comparison rows carried an id (2026-12-03): display name -> id
+_IDS_OF_OLD_NAMES = {"EDL + average (d) vs Late Fusion (b)": "d vs b",
+                     "EDL + average (d) vs clean-fitted Late Fusion (control)": "d vs b_clean_fit",
+                     "DS (e) vs average (d), standard noise": "e vs d",
+                     "DS (g) vs average (d'), all modalities noisy": "g vs d_prime",
+                     "DS + gating (f) vs DS (e)": "f vs e",
+                     **{f"objective: EDL vs sigmoid head, {m}": f"a_edl_{m} vs a_{m}" for m in MODALITIES}}
+
+
+def _comparison_key(row: dict) -> str:
+    """The stable id of a comparison row (``id``; older run folders: from the display name)."""
+    return row.get("id") or _IDS_OF_OLD_NAMES.get(row["comparison"], row["comparison"])
+
+
 def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | None = None) -> list[str]:
     """Plain-language answers, with the numbers, whatever they are."""
     out = []
     b, d, e = _cond(ev, "b"), _cond(ev, "d"), _cond(ev, "e")
-    comps = {x["comparison"]: x for x in ev.get("comparisons", ev.get("bootstrap", []))}
+    comps = {_comparison_key(x): x for x in ev.get("comparisons", ev.get("bootstrap", []))}
     if audit:
         bad = [r for r in audit["baselines"] if r.get("beats_chance") and r.get("decisive", True)]
         scored = [r for r in audit["baselines"] if r.get("score") is not None and r.get("decisive", True)]
@@ -118,30 +132,30 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | N
             f"{worst['model']} {100 * worst['score']:.1f}% balanced accuracy, CI [{_pct_vs_chance(worst['ci_low'])}, "
             f"{_pct_vs_chance(worst['ci_high'])}]%)." if worst else "no baseline could be scored."))
     if b and d:
-        name = "EDL + average (d) vs Late Fusion (b)"
+        name = "d vs b"
         out.append(f"<b>EDL + average vs sigmoid Late Fusion (fitted on noisy validation outputs):</b> "
                    f"{100 * d['accuracy']:.2f}% vs {100 * b['accuracy']:.2f}% under the standard noise protocol: "
                    f"{_verdict(comps.get(name), 'EDL + average', 'Late Fusion')}; {_stat(comps.get(name))}.")
         bc = _cond(ev, "b_clean_fit")
         if bc:
-            n2 = "EDL + average (d) vs clean-fitted Late Fusion (control)"
+            n2 = "d vs b_clean_fit"
             out.append(f"<b>Control, Late Fusion fitted on clean train outputs:</b> {100 * bc['accuracy']:.2f}%; "
                        f"{_verdict(comps.get(n2), 'EDL + average', 'clean-fitted Late Fusion')}; "
                        f"{_stat(comps.get(n2))}.")
     pairs = [(m, _cond(ev, f"a_{m}"), _cond(ev, f"a_edl_{m}")) for m in MODALITIES]
     obj = [f"{m}: {100 * ed['accuracy']:.1f}% EDL vs {100 * sg['accuracy']:.1f}% sigmoid, "
-           f"{_verdict(comps.get(f'objective: EDL vs sigmoid head, {m}'), 'EDL', 'sigmoid')} "
-           f"({_stat(comps.get(f'objective: EDL vs sigmoid head, {m}'))})" for m, sg, ed in pairs if sg and ed]
+           f"{_verdict(comps.get(f'a_edl_{m} vs a_{m}'), 'EDL', 'sigmoid')} "
+           f"({_stat(comps.get(f'a_edl_{m} vs a_{m}'))})" for m, sg, ed in pairs if sg and ed]
     if obj:
         out.append("<b>Does the evidential objective help?</b> (same backbone, standard noise) " + "; ".join(obj) + ".")
     if d and e:
-        name = "DS (e) vs average (d), standard noise"
+        name = "e vs d"
         out.append(f"<b>DS vs averaging, no controlled conflict:</b> DS {100 * e['accuracy']:.2f}% vs average "
                    f"{100 * d['accuracy']:.2f}%: {_verdict(comps.get(name), 'DS', 'averaging')}; "
                    f"{_stat(comps.get(name))}.")
     g, dp = _cond(ev, "g"), _cond(ev, "d_prime")
     if g and dp:
-        name = "DS (g) vs average (d'), all modalities noisy"
+        name = "g vs d_prime"
         out.append(f"<b>All modalities noisy:</b> DS {100 * g['accuracy']:.2f}% vs average "
                    f"{100 * dp['accuracy']:.2f}%: "
                    f"{_verdict(comps.get(name), 'DS', 'averaging')}; {_stat(comps.get(name))}.")
@@ -172,7 +186,7 @@ def headline(ev: dict, conflict: dict | None, gate: dict | None, audit: dict | N
     if gate:
         t = gate["timing"]
         f = _cond(ev, "f")
-        name = "DS + gating (f) vs DS (e)"
+        name = "f vs e"
         out.append(f"<b>Gating:</b> at the validation-chosen point (&tau;<sub>high</sub>={t['params']['tau_high']}, "
                    f"&tau;<sub>low</sub>={t['params']['tau_low']}, N={t['params']['n']}) the encoders skipped "
                    f"{', '.join(f'{m} {100 * s:.1f}%' for m, s in zip(MODALITIES, t['skip_rate_per_modality']))}; "
