@@ -38,8 +38,8 @@ def _no_placeholder_for_flags() -> None:
         # shorter type column leaves the help text room (export --help was squeezed into ~40 columns)
         return original(self, ctx).replace(" range>", ">")
 
-    display_type_rich.evids_flags = True
-    TyperOption.display_type_rich = display_type_rich
+    display_type_rich.evids_flags = True  # type: ignore[attr-defined]  # marker: patched once per process
+    TyperOption.display_type_rich = display_type_rich  # type: ignore[method-assign]  # patching typer's class
 
 
 _no_placeholder_for_flags()

@@ -67,6 +67,11 @@ class MixtureEntry(_Model):
 
 
 TrajectoryKind = Literal["hover", "flyby", "orbit", "waypoints"]
+DistractorKind = Literal["bird", "airliner", "helicopter"]
+
+
+def _default_distractor_kinds() -> list[DistractorKind]:
+    return ["bird"]
 
 
 class DistanceBin(_Model):
@@ -105,8 +110,7 @@ class Randomisation(_Model):
     camera_pitch_deg: Range | None = Field(default=None, description="thermal-to-RGB pitch offset")
     camera_translation_m: Range | None = Field(default=None, description="thermal-to-RGB baseline along x")
     distractors: tuple[Annotated[int, Field(ge=0, le=10)], Annotated[int, Field(ge=0, le=10)]] = (0, 0)
-    distractor_kinds: list[Literal["bird", "airliner", "helicopter"]] = Field(default_factory=lambda: ["bird"],
-                                                                              min_length=1)
+    distractor_kinds: list[DistractorKind] = Field(default_factory=_default_distractor_kinds, min_length=1)
     # scene realism (issue 23); every field left null keeps the draws and outputs of older configs
     distance_bins: list[DistanceBin] | None = Field(default=None, min_length=1,
                                                     description="replaces range_m: a weighted mixture of distance "
@@ -290,26 +294,31 @@ def _direction(bearing_deg: float, elevation_deg: float) -> np.ndarray:
     return np.array([math.sin(b) * math.cos(e), math.cos(b) * math.cos(e), math.sin(e)])
 
 
-def _trajectory(kind: str, centre: np.ndarray, speed: float, duration_s: float, rng: np.random.Generator):
+def _xyz(v: np.ndarray) -> tuple[float, float, float]:
+    """A 3-vector as a tuple of floats rounded to the millimetre."""
+    x, y, z = (round(float(c), 3) for c in v)
+    return x, y, z
+
+
+def _trajectory(kind: str, centre: np.ndarray, speed: float, duration_s: float,
+                rng: np.random.Generator) -> Hover | Flyby | Orbit | Waypoints:
     heading = rng.uniform(0.0, 2 * math.pi)
     horiz = np.array([math.cos(heading), math.sin(heading), 0.0])
-    c = tuple(round(float(v), 3) for v in centre)
+    c = _xyz(centre)
     if kind == "hover":
         return Hover(center_m=c, drift_m=round(float(rng.uniform(0.2, 1.0)), 3))
     if kind == "flyby":
         climb = float(rng.uniform(-0.1, 0.1))
         velocity = speed * horiz + np.array([0.0, 0.0, climb * speed])
         start = centre - velocity * duration_s / 2
-        return Flyby(start_m=tuple(round(float(v), 3) for v in start),
-                     velocity_mps=tuple(round(float(v), 3) for v in velocity))
+        return Flyby(start_m=_xyz(start), velocity_mps=_xyz(velocity))
     if kind == "orbit":
         radius = float(rng.uniform(5.0, 25.0))
         return Orbit(center_m=c, radius_m=round(radius, 3), speed_mps=round(speed, 3),
                      clockwise=bool(rng.random() < 0.5),
                      start_angle_deg=round(float(rng.uniform(0, 360)), 3))
     spread = max(2.0, speed * duration_s / 3)
-    points = [tuple(round(float(v), 3) for v in centre + rng.uniform(-1, 1, 3) * np.array([spread, spread, spread / 4]))
-              for _ in range(4)]
+    points = [_xyz(centre + rng.uniform(-1, 1, 3) * np.array([spread, spread, spread / 4])) for _ in range(4)]
     return Waypoints(points_m=points, speed_mps=round(speed, 3))
 
 
@@ -354,13 +363,13 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
             distance = float(np.linalg.norm(np.asarray(_trajectory_anchor(base.targets[p])) - cam_pos))
             rng.random()
         kinds = r.trajectory_kinds or ["hover", "flyby", "orbit", "waypoints"]
-        kind = kinds[int(rng.integers(0, len(kinds)))]
+        trajectory_kind = kinds[int(rng.integers(0, len(kinds)))]
         bearing = float(rng.uniform(-30.0, 30.0))
         elevation = r.elevation_deg.draw(rng)
         speed = r.speed_mps.draw(rng)
         centre = cam_pos + distance * _direction(bearing, elevation)
         centre[2] = max(centre[2], cam_pos[2] + 5.0)
-        targets[p]["trajectory"] = _trajectory(kind, centre, speed, duration, rng).model_dump(mode="python")
+        targets[p]["trajectory"] = _trajectory(trajectory_kind, centre, speed, duration, rng).model_dump(mode="python")
         width = config.image_size[0]
         hfov = math.degrees(targets[p]["size_m"] / distance * width / r.target_px.draw(rng))
         hfov = float(min(60.0, max(0.5, hfov)))

@@ -42,7 +42,7 @@ from simulator.files import (
     verify_hashes,
     write_atomic,
 )
-from simulator.jobs import JobError, iter_jobs, threads_per_worker
+from simulator.jobs import JobError, Start, iter_jobs, threads_per_worker
 
 MANIFEST = "manifest.json"
 SEQUENCES_DIR = "sequences"
@@ -181,7 +181,7 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
     """Render one sequence; never raises: returns {"name", "hash"} or {"name", "error"}."""
     try:
         from scenes.schema import Scenario
-        from simulator.dataset.sequence import render_sequence
+        from simulator.dataset.sequence import WRITER_THREADS, render_sequence
 
         if threads is not None:
             from simulator.render.mitsuba_setup import load_mitsuba
@@ -196,7 +196,7 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
         scenario = Scenario.model_validate(task["scenario"])
         cpu0 = time.process_time()
         # a worker limited to N threads also writes its PNGs on N threads (no oversubscription)
-        writer = {} if threads is None else {"writer_threads": max(1, int(threads))}
+        writer_threads = WRITER_THREADS if threads is None else max(1, int(threads))
         from simulator.dataset.sequence import PassTimes
 
         stages = PassTimes()
@@ -204,7 +204,7 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
         notes: list[str] = []
         written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"],
                                   progress=False,
-                                  times=stages, overwrite=True, notes=notes, **writer)
+                                  times=stages, overwrite=True, notes=notes, writer_threads=writer_threads)
         stages.seconds["setup + metadata (rest)"] = time.perf_counter() - wall0 - sum(stages.seconds.values())
         return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
                 "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid(), "stage_s": stages.seconds,
@@ -233,6 +233,7 @@ def run_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, *, workers: int 
     one-process pool with 1 Dr.Jit thread per worker instead (for scaling benchmarks)."""
     if executor not in EXECUTORS:
         raise UserInputError(f"--executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
+    start: Start
     if executor == "ray":
         start, threads = "ray", 1 if ray_address else threads_per_worker(workers)
     elif workers <= 1 and not force_pool:
@@ -386,7 +387,7 @@ def verify_dataset(dataset_dir: str | Path, *, progress: bool = False) -> Verify
     manifest = load_manifest(root)
     complete = manifest.get("complete", False) is True
     report = VerifyReport(incomplete=not complete)
-    entries = manifest_entries(manifest, root / MANIFEST)
+    entries: Iterable[dict[str, Any]] = manifest_entries(manifest, root / MANIFEST)
     planned = manifest.get("config", {}).get("sequences") if isinstance(manifest.get("config"), dict) else None
     listed = {e["name"] for e in entries}
     if isinstance(planned, int):

@@ -6,6 +6,7 @@ import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -46,7 +47,7 @@ def _camera_meta(timeline: Timeline, which: str) -> dict:
     rig = timeline.scenario.camera_rig
     cam = timeline.cameras[which]
     intr = rig.rgb if which == "rgb" else rig.thermal
-    out = {"width_px": cam.width_px, "height_px": cam.height_px, "hfov_deg": cam.hfov_deg,
+    out: dict[str, Any] = {"width_px": cam.width_px, "height_px": cam.height_px, "hfov_deg": cam.hfov_deg,
            "focal_px": round(cam.focal_px, 6), "spp": intr.spp}
     if which == "thermal":
         out.update({"netd_k": rig.thermal.netd_k, "kelvin_per_count": rig.thermal.kelvin_per_count,

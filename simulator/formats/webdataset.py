@@ -81,8 +81,8 @@ def export_native_webdataset(entries: Iterable[dict[str, Any]], out: Path, *, sh
     return out
 
 
-def export_trident_webdataset(src_root: Path, out: Path, *, shard_bytes: int = SHARD_BYTES, mfcc: str | None = None,
-                              progress: bool = False) -> Path:
+def export_trident_webdataset(src_root: str | Path, out: str | Path, *, shard_bytes: int = SHARD_BYTES,
+                              mfcc: str | None = None, progress: bool = False) -> Path:
     """Shards of segment samples for a TRIDENT clip dataset (one split, ``all``)."""
     import cv2
 

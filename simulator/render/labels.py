@@ -136,8 +136,8 @@ def coverage_labels(timeline: Timeline, frame: int, camera: str, coverage: list,
     for track in timeline.targets:
         cov = by_id.get(track.target_id)
         box = _box_of_coverage(cov) if cov is not None else None
-        record = _record(track, cam, frame, box, round(cov.visible_px, 4) if box is not None else 0.0,
-                         width, height)
+        visible_px = round(cov.visible_px, 4) if cov is not None and box is not None else 0.0
+        record = _record(track, cam, frame, box, visible_px, width, height)
         if netd_k is not None:
             contrast = round(target_contrast_k(cov), 5) if box is not None else None
             record["contrast_k"] = contrast

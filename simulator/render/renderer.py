@@ -22,6 +22,7 @@ import warnings
 import weakref
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -47,6 +48,9 @@ from simulator.render.plan import (
     projected_boxes,
 )
 from simulator.seeding import render_seed, rng_for
+
+if TYPE_CHECKING:
+    from scenes.terrain import TerrainMesh
 
 ENV_WIDTH = 2048
 ENV_HEIGHT = 1024
@@ -337,7 +341,7 @@ class _View:
                     self.keys.append((slot, ti, role))
                     face_counts.append(len(geo.faces(role)))
                     vert_counts.append(len(geo.world(0)[role]))
-        self.terrain = owner.terrain_seen[which][0] if owner.terrain is not None else None
+        self.terrain: TerrainMesh | None = owner.terrain_seen[which][0] if owner.terrain is not None else None
         if self.terrain is not None:
             # terrain: one copy per slot plus one in the background slot (index batch_frames), which
             # holds no targets and serves the ROI background (self.sky)
@@ -353,7 +357,7 @@ class _View:
         self._key_role = [k[2] for k in self.keys]
         faces, offset = [], 0
         for (_slot, ti, role), nv in zip(self.keys, vert_counts):
-            faces.append((self.terrain.faces if ti < 0 else owner.geometry[ti].faces(role)) + offset)
+            faces.append((self._terrain_mesh.faces if ti < 0 else owner.geometry[ti].faces(role)) + offset)
             offset += nv
         # one zero-area face spanning a fixed box (never hit) pins the scene's bounding sphere, which
         # Mitsuba bakes into the emitter kernels as literals: without it every sequence compiled its
@@ -407,6 +411,12 @@ class _View:
         """Mesh attributes are per face (targets only) or per vertex (with terrain: smooth texture)."""
         return "face" if self.terrain is None else "vertex"
 
+    @property
+    def _terrain_mesh(self) -> TerrainMesh:
+        """The terrain this view sees; used only with terrain (its keys have target index -1)."""
+        assert self.terrain is not None
+        return self.terrain
+
     def _floats(self, values: np.ndarray):
         """A mesh buffer (Dr.Jit Float array) from numpy."""
         return self.mi.Float(values)
@@ -421,7 +431,7 @@ class _View:
         for slot, ti, role in self.keys:
             if ti < 0:   # terrain; the background slot is set for frame 0's camera origin
                 frame = slot_frames[slot] if slot < len(slot_frames) else 0
-                blocks.append(self.terrain.vertices - cam.origin_m[frame] + plan.slot_offset_m(slot))
+                blocks.append(self._terrain_mesh.vertices - cam.origin_m[frame] + plan.slot_offset_m(slot))
                 continue
             frame = slot_frames[slot]
             rel = owner.geometry[ti].world(frame)[role] - cam.origin_m[frame]
@@ -470,12 +480,12 @@ class _View:
         target_keys = self._key_target >= 0
         blocks = [np.repeat(per_key[target_keys], self.vert_counts[target_keys], axis=0)]
         n_terrain = int(np.sum(~target_keys))
-        tv = np.zeros((len(self.terrain.vertices), 3), np.float32) if terrain_values is None else terrain_values
+        tv = np.zeros((len(self._terrain_mesh.vertices), 3), np.float32) if terrain_values is None else terrain_values
         blocks += [tv] * n_terrain
         blocks.append(np.zeros((2, 3), np.float32))
         return np.vstack(blocks).astype(np.float32)
 
-    def _camera_arrays(self, slot_frames: list[int]) -> list:
+    def _camera_arrays(self, slot_frames: list[int]) -> list[Any] | np.ndarray:
         """Per-slot camera origin, forward, right and up as Dr.Jit arrays (for gathers)."""
         cam, plan, mi = self.camera, self.plan, self.mi
         rows = []
@@ -739,10 +749,10 @@ def _layout_geometry(timeline: Timeline, layout: Timeline, cameras: tuple[str, .
         if a.name != b.name or not np.array_equal(a.position_m, b.position_m):
             raise ValueError(f"layout timeline differs in target {a.name!r}: its targets must start with the scene's")
     for which in cameras:
-        a, b = timeline.cameras[which], layout.cameras[which]
-        if not (np.array_equal(a.origin_m, b.origin_m) and np.array_equal(a.forward, b.forward)
-                and np.array_equal(a.up, b.up) and a.focal_px == b.focal_px and a.width_px == b.width_px
-                and a.height_px == b.height_px):
+        ca, cb = timeline.cameras[which], layout.cameras[which]
+        if not (np.array_equal(ca.origin_m, cb.origin_m) and np.array_equal(ca.forward, cb.forward)
+                and np.array_equal(ca.up, cb.up) and ca.focal_px == cb.focal_px and ca.width_px == cb.width_px
+                and ca.height_px == cb.height_px):
             raise ValueError(f"layout timeline has a different {which} camera")
     return [TrackGeometry(track) for track in other]
 
@@ -790,8 +800,9 @@ class SequenceRenderer:
         self.rig = scenario.camera_rig
         self._targets = {t.name: t for t in scenario.targets}
         self.geometry = [TrackGeometry(track) for track in timeline.targets]
-        self.terrain = None
-        self.terrain_seen: dict[str, tuple] = {}   # per camera: (the faces any frame sees, their vertex index)
+        self.terrain: TerrainMesh | None = None
+        # per camera: (the faces any frame sees, their vertex index)
+        self.terrain_seen: dict[str, tuple[TerrainMesh, np.ndarray]] = {}
         self._terrain_emission: dict[str, np.ndarray] = {}
         if scenario.terrain is not None:
             from scenes.terrain import build_terrain
@@ -869,6 +880,7 @@ class SequenceRenderer:
         from simulator.physics.terrain_thermal import surface_offset_k
 
         mesh, scenario = self.terrain, self.timeline.scenario
+        assert mesh is not None and scenario.terrain is not None, "terrain_emission needs a scene with terrain"
         rel = mesh.vertices - self.timeline.cameras[which].origin_m[0]
         dist = np.maximum(np.linalg.norm(rel, axis=1), 1e-3)
         if which == "rgb":
@@ -960,7 +972,7 @@ class SequenceRenderer:
             if not cov.any():
                 continue
             roles = [key_role[i] for i in np.flatnonzero(own)]
-            role_px = {}
+            role_px: dict[str, float] = {}
             for i, role in zip(np.flatnonzero(own), roles):
                 role_px[role] = role_px.get(role, 0.0) + float(counts[..., i].sum()) / k2
             record = TargetCoverage(track.target_id, region, cov, role_px)
