@@ -1,8 +1,11 @@
-"""The kinds of target and the nominal size of each drone kind: the one table every part of the
-simulator reads (the randomised scene sampler, acoustics, RF), so a hexacopter has one size.
+"""The kinds of target, the nominal size of each drone kind and the size span a drawn target of each
+kind gets: the one table every part of the simulator reads (the scene samplers, acoustics, RF), so a
+hexacopter has one size.
 
-Sizes are overall span in metres: the size a sampled target of that kind gets (before a config's
-``target_size_scale``) and the reference size at which acoustics quotes a kind's source levels.
+Sizes are overall span in metres. ``DRONE_SIZE_M`` is the size a sampled drone of that kind gets when
+a generation config changes its kind (before the config's ``target_size_scale``) and the reference
+size at which acoustics quotes a kind's source levels. ``TARGET_SIZE_RANGE_M`` is the span a target of
+each kind is drawn from where a sampler draws a size (``scenes.sampling.target_size``).
 """
 from __future__ import annotations
 
@@ -10,5 +13,21 @@ from __future__ import annotations
 TARGET_KINDS = ("quadcopter", "hexacopter", "fixed_wing", "bird", "airliner", "helicopter")
 #: the kinds that count as a drone (label "Drone", rotor/engine audio, a radio link)
 DRONE_KINDS = ("quadcopter", "hexacopter", "fixed_wing")
+#: the kinds that are not drones (a generation config's distractors, TRIDENT's confusers)
+DISTRACTOR_KINDS = tuple(k for k in TARGET_KINDS if k not in DRONE_KINDS)
 #: nominal overall span (m) of each drone kind
 DRONE_SIZE_M = {"quadcopter": 0.45, "hexacopter": 0.9, "fixed_wing": 2.0}
+
+#: span (m) of a drawn target's overall size, uniform. Drones: the TRIDENT scene distribution's spans
+#: (d8fa57f), each around its nominal size above (small quads to F450-class 0.6 m, hexacopters to
+#: 1.1 m, fixed wing 1-2.2 m). Bird, airliner and helicopter: the distractor spans of the generation
+#: configs (a crow to a gull, narrow-body to wide-body wingspan, light-helicopter rotor diameter).
+TARGET_SIZE_RANGE_M = {"quadcopter": (0.3, 0.6), "hexacopter": (0.6, 1.1), "fixed_wing": (1.0, 2.2),
+                       "bird": (0.3, 0.8), "airliner": (30.0, 60.0), "helicopter": (8.0, 14.0)}
+#: the drone rows of the table above, fitted to the Svanström benchmark's drones: the sim2real
+#: synthetic-audio default (``drone_size_m``). Quadcopters span its two larger drones (DJI Phantom 4 Pro
+#: 0.35 m, DJI Flame Wheel F450 0.45 m: 63 of the 74 calibration IR clips); the 0.1 m Hubsan H107D+ (11
+#: clips) is left out: at the cube-law mass its sound power would be ~25 dB under an F450's
+#: (docs/SIM2REAL_AUDIO.md, third pass; was 0.12-0.5 m). Hexacopters 0.5-1.1 m.
+BENCHMARK_DRONE_SIZE_RANGE_M = {**{k: TARGET_SIZE_RANGE_M[k] for k in DRONE_KINDS},
+                                "quadcopter": (0.3, 0.5), "hexacopter": (0.5, 1.1)}

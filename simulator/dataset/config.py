@@ -8,6 +8,7 @@ randomised parameter never shifts the others, and the split of sequence k depend
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -16,11 +17,11 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M
 from scenes.loader import GENERATION_DIR
+from scenes.sampling import Span, at, direction, pick, pick_at, target_size
 from scenes.schema import Flyby, Hover, Orbit, Scenario, Target, Terrain, Waypoints
 from simulator.seeding import rng_for
 
 SPLITS = ("train", "val", "test")
-DISTRACTOR_KINDS = ("bird", "airliner", "helicopter")
 
 # sub-streams of the "generation" stream per sequence (never renumber: it would change datasets)
 _S_PRESET, _S_SEED, _S_TARGET, _S_TRAJ, _S_SUN, _S_AIR, _S_PARTS, _S_CAMERA, _S_DISTRACT = range(1, 10)
@@ -56,7 +57,8 @@ class Range(_Model):
         return self
 
     def draw(self, rng: np.random.Generator) -> float:
-        return float(self.min + (self.max - self.min) * rng.random())
+        """A uniform value of the range (one draw)."""
+        return at((self.min, self.max), rng.random())
 
 
 class MixtureEntry(_Model):
@@ -67,6 +69,8 @@ class MixtureEntry(_Model):
 
 
 TrajectoryKind = Literal["hover", "flyby", "orbit", "waypoints"]
+
+
 DistractorKind = Literal["bird", "airliner", "helicopter"]
 
 
@@ -288,12 +292,6 @@ def _primary_index(targets: list[Target]) -> int:
     return 0
 
 
-def _direction(bearing_deg: float, elevation_deg: float) -> np.ndarray:
-    """Unit vector, bearing clockwise from +y (north) toward +x (east), elevation above horizon."""
-    b, e = math.radians(bearing_deg), math.radians(elevation_deg)
-    return np.array([math.sin(b) * math.cos(e), math.cos(b) * math.cos(e), math.sin(e)])
-
-
 def _xyz(v: np.ndarray) -> tuple[float, float, float]:
     """A 3-vector as a tuple of floats rounded to the millimetre."""
     x, y, z = (round(float(c), 3) for c in v)
@@ -325,7 +323,11 @@ def _trajectory(kind: str, centre: np.ndarray, speed: float, duration_s: float,
 def randomised_scenario(config: GenerationConfig, seed: int, index: int,
                         base_dir: Path | None = None) -> tuple[str, Scenario]:
     """(mixture source, scenario) of sequence ``index``: the chosen scenario with every configured
-    range drawn, resized to the config's image size and frame count, named ``seq<index+1>``."""
+    range drawn, resized to the config's image size and frame count, named ``seq<index+1>``.
+
+    Each step draws from its own sub-stream ``rng_for(seed, "generation", index, _S_...)``, in this
+    order: primary target (kind, size), track (range, path, camera), sun, clouds, air, part
+    temperatures, thermal-camera offset, distractors."""
     source = choose_source(config, seed, index)
     base = _load_source(source, base_dir)
     r = config.randomise
@@ -336,115 +338,154 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
     targets = data["targets"]
     p = _primary_index(base.targets)
 
-    rng = rng_for(seed, "generation", index, _S_TARGET)
-    kind_draw, size_draw = rng.random(), rng.random()
-    if r.target_kinds is not None and targets[p]["kind"] in DRONE_KINDS:
-        new_kind = r.target_kinds[min(int(kind_draw * len(r.target_kinds)), len(r.target_kinds) - 1)]
-        if new_kind != targets[p]["kind"]:
-            targets[p]["kind"] = new_kind
-            targets[p]["thermal"]["offsets_k"] = {}
-            targets[p]["thermal"]["offsets_end_k"] = None
-            targets[p]["materials"] = {}
-            targets[p]["size_m"] = DRONE_SIZE_M[new_kind]
-    if r.target_size_scale is not None:
-        lo, hi = r.target_size_scale.min, r.target_size_scale.max
-        targets[p]["size_m"] = round(targets[p]["size_m"] * (lo + (hi - lo) * size_draw), 4)
+    def stream(sub: int) -> np.random.Generator:
+        return rng_for(seed, "generation", index, sub)
 
+    _draw_primary_target(r, targets[p], stream(_S_TARGET))
     rig = data["camera_rig"]
     cam_pos = np.asarray(rig["position_m"], dtype=np.float64)
     if r.range_m is not None or r.trajectory_kinds is not None or r.distance_bins is not None:
-        rng = rng_for(seed, "generation", index, _S_TRAJ)
-        if r.distance_bins is not None:
-            rng.random()   # keeps the later draws where a range_m config has them
-            distance = _draw_bin(r.distance_bins, rng_for(seed, "generation", index, _S_BINS))
-        elif r.range_m is not None:
-            distance = r.range_m.draw(rng)
-        else:
-            distance = float(np.linalg.norm(np.asarray(_trajectory_anchor(base.targets[p])) - cam_pos))
-            rng.random()
-        kinds = r.trajectory_kinds or ["hover", "flyby", "orbit", "waypoints"]
-        trajectory_kind = kinds[int(rng.integers(0, len(kinds)))]
-        bearing = float(rng.uniform(-30.0, 30.0))
-        elevation = r.elevation_deg.draw(rng)
-        speed = r.speed_mps.draw(rng)
-        centre = cam_pos + distance * _direction(bearing, elevation)
-        centre[2] = max(centre[2], cam_pos[2] + 5.0)
-        targets[p]["trajectory"] = _trajectory(trajectory_kind, centre, speed, duration, rng).model_dump(mode="python")
-        width = config.image_size[0]
-        hfov = math.degrees(targets[p]["size_m"] / distance * width / r.target_px.draw(rng))
-        hfov = float(min(60.0, max(0.5, hfov)))
-        if r.hfov_deg is not None:
-            hfov = r.hfov_deg.draw(rng_for(seed, "generation", index, _S_FOV))
-        ratio = base.camera_rig.thermal.hfov_deg / base.camera_rig.rgb.hfov_deg
-        rig["track_target"] = targets[p]["name"]
-        rig["look_at_m"] = None
-        rig["rgb"]["hfov_deg"] = round(hfov, 4)
-        rig["thermal"]["hfov_deg"] = round(min(60.0, hfov * ratio), 4)
-        if r.elevation_fov_fraction is not None:
-            tw, th_px = config.thermal_image_size or config.image_size
-            vfov = 2 * math.degrees(math.atan(math.tan(math.radians(rig["thermal"]["hfov_deg"]) / 2) * th_px / tw))
-            new_el = r.elevation_fov_fraction.draw(rng_for(seed, "generation", index, _S_ELEV)) * vfov
-            anchor = np.asarray(_trajectory_anchor(Target.model_validate(targets[p])), dtype=np.float64)
-            wanted_z = max(cam_pos[2] + distance * math.sin(math.radians(new_el)), 3.0)
-            targets[p]["trajectory"] = _shift_z(targets[p]["trajectory"], wanted_z - anchor[2])
-            elevation = new_el
-        _camera_mode(r, rig, targets[p], cam_pos, bearing, elevation, rng_for(seed, "generation", index, _S_MODE))
+        _draw_track(config, base, p, targets[p], rig, cam_pos, duration, stream)
+    _draw_sun(r, data["sky"], stream(_S_SUN))
+    if r.cloud_cover is not None:
+        _draw_clouds(r.cloud_cover, data["sky"], stream(_S_CLOUDS))
+    if r.terrain is not None:
+        data["terrain"] = r.terrain.model_dump(mode="python")
+    _draw_air(r, data["atmosphere"], stream(_S_AIR))
+    if r.part_temperature_offset_k is not None:
+        _draw_part_offsets(r.part_temperature_offset_k, targets, stream(_S_PARTS))
+    _draw_camera_offset(r, rig["thermal_offset"], stream(_S_CAMERA))
+    _draw_distractors(r, targets, targets[p], rig, base, cam_pos, duration, stream(_S_DISTRACT))
 
-    rng = rng_for(seed, "generation", index, _S_SUN)
+    w, h = config.image_size
+    tw, th = config.thermal_image_size or config.image_size
+    rig["rgb"].update(width_px=w, height_px=h, spp=config.spp)
+    rig["thermal"].update(width_px=tw, height_px=th, spp=config.spp)
+    from scenes.loader import scenario_from_dict
+
+    return source, scenario_from_dict(data, source=f"{config.name}: sequence {index}")
+
+
+def _draw_primary_target(r: Randomisation, target: dict, rng: np.random.Generator) -> None:
+    """The primary drone's kind (``target_kinds``; a new kind takes its nominal size and default
+    thermal offsets and materials) and size (``target_size_scale``). Always two draws."""
+    kind_draw, size_draw = rng.random(), rng.random()
+    if r.target_kinds is not None and target["kind"] in DRONE_KINDS:
+        new_kind = pick_at(r.target_kinds, kind_draw)
+        if new_kind != target["kind"]:
+            target["kind"] = new_kind
+            target["thermal"]["offsets_k"] = {}
+            target["thermal"]["offsets_end_k"] = None
+            target["materials"] = {}
+            target["size_m"] = DRONE_SIZE_M[new_kind]
+    if r.target_size_scale is not None:
+        target["size_m"] = round(target["size_m"] * at(_span(r.target_size_scale), size_draw), 4)
+
+
+def _draw_track(config: GenerationConfig, base: Scenario, p: int, target: dict, rig: dict, cam_pos: np.ndarray,
+                duration: float, stream: Callable[[int], np.random.Generator]) -> None:
+    """The primary drone's new trajectory (range, kind, bearing, elevation, speed, path) and the camera
+    that tracks it: field of view from ``target_px`` (or ``hfov_deg``), elevation from
+    ``elevation_fov_fraction``, then the camera mode (fixed or tracking). ``target`` is the primary
+    target's dict, ``base.targets[p]`` the same target before this sequence's draws."""
+    r = config.randomise
+    rng = stream(_S_TRAJ)
+    if r.distance_bins is not None:
+        rng.random()   # keeps the later draws where a range_m config has them
+        distance = _draw_bin(r.distance_bins, stream(_S_BINS))
+    elif r.range_m is not None:
+        distance = r.range_m.draw(rng)
+    else:
+        distance = float(np.linalg.norm(np.asarray(_trajectory_anchor(base.targets[p])) - cam_pos))
+        rng.random()
+    kind = pick(rng, r.trajectory_kinds or ["hover", "flyby", "orbit", "waypoints"])
+    bearing = float(rng.uniform(-30.0, 30.0))
+    elevation = r.elevation_deg.draw(rng)
+    speed = r.speed_mps.draw(rng)
+    centre = cam_pos + distance * direction(bearing, elevation)
+    centre[2] = max(centre[2], cam_pos[2] + 5.0)
+    target["trajectory"] = _trajectory(kind, centre, speed, duration, rng).model_dump(mode="python")
+    width = config.image_size[0]
+    hfov = math.degrees(target["size_m"] / distance * width / r.target_px.draw(rng))
+    hfov = float(min(60.0, max(0.5, hfov)))
+    if r.hfov_deg is not None:
+        hfov = r.hfov_deg.draw(stream(_S_FOV))
+    ratio = base.camera_rig.thermal.hfov_deg / base.camera_rig.rgb.hfov_deg
+    rig["track_target"] = target["name"]
+    rig["look_at_m"] = None
+    rig["rgb"]["hfov_deg"] = round(hfov, 4)
+    rig["thermal"]["hfov_deg"] = round(min(60.0, hfov * ratio), 4)
+    if r.elevation_fov_fraction is not None:
+        tw, th_px = config.thermal_image_size or config.image_size
+        vfov = 2 * math.degrees(math.atan(math.tan(math.radians(rig["thermal"]["hfov_deg"]) / 2) * th_px / tw))
+        new_el = r.elevation_fov_fraction.draw(stream(_S_ELEV)) * vfov
+        anchor = np.asarray(_trajectory_anchor(Target.model_validate(target)), dtype=np.float64)
+        wanted_z = max(cam_pos[2] + distance * math.sin(math.radians(new_el)), 3.0)
+        target["trajectory"] = _shift_z(target["trajectory"], wanted_z - anchor[2])
+        elevation = new_el
+    _camera_mode(r, rig, target, cam_pos, bearing, elevation, stream(_S_MODE))
+
+
+def _draw_sun(r: Randomisation, sky: dict, rng: np.random.Generator) -> None:
+    """The sun: a drawn UTC hour at the config's place and date (``time_of_day_h``), or a drawn
+    elevation and/or azimuth (a preset sun given by date keeps 35 / 135 deg for the other)."""
     if r.time_of_day_h is not None:
         hour = r.time_of_day_h.draw(rng)
         hh, mm = int(hour), int(round((hour - int(hour)) * 60))
         if mm == 60:
             hh, mm = hh + 1, 0
         stamp = f"{r.date}T{min(hh, 23):02d}:{mm if hh < 24 else 59:02d}:00+00:00"
-        data["sky"]["sun"] = {"datetime_utc": stamp, "latitude_deg": r.latitude_deg, "longitude_deg": r.longitude_deg}
+        sky["sun"] = {"datetime_utc": stamp, "latitude_deg": r.latitude_deg, "longitude_deg": r.longitude_deg}
     elif r.sun_elevation_deg is not None or r.sun_azimuth_deg is not None:
-        sun = data["sky"]["sun"]
+        sun = sky["sun"]
         if sun.get("elevation_deg") is None:
             sun = {"elevation_deg": 35.0, "azimuth_deg": 135.0}
         if r.sun_elevation_deg is not None:
             sun["elevation_deg"] = round(r.sun_elevation_deg.draw(rng), 4)
         if r.sun_azimuth_deg is not None:
             sun["azimuth_deg"] = round(r.sun_azimuth_deg.draw(rng), 4)
-        data["sky"]["sun"] = {"elevation_deg": sun["elevation_deg"], "azimuth_deg": sun["azimuth_deg"]}
+        sky["sun"] = {"elevation_deg": sun["elevation_deg"], "azimuth_deg": sun["azimuth_deg"]}
 
-    if r.cloud_cover is not None:
-        cover = round(r.cloud_cover.draw(rng_for(seed, "generation", index, _S_CLOUDS)), 4)
-        clouds = dict(data["sky"].get("clouds") or {})
-        clouds["coverage"] = cover
-        data["sky"]["clouds"] = clouds
-    if r.terrain is not None:
-        data["terrain"] = r.terrain.model_dump(mode="python")
 
-    rng = rng_for(seed, "generation", index, _S_AIR)
-    air = data["atmosphere"]
+def _draw_clouds(cover: Range, sky: dict, rng: np.random.Generator) -> None:
+    """The cloud coverage (the preset's other cloud fields kept)."""
+    clouds = dict(sky.get("clouds") or {})
+    clouds["coverage"] = round(cover.draw(rng), 4)
+    sky["clouds"] = clouds
+
+
+def _draw_air(r: Randomisation, air: dict, rng: np.random.Generator) -> None:
+    """Air temperature, humidity and visibility: one draw each, made whether or not it is configured."""
     for field, rounding in (("air_temperature_k", 3), ("relative_humidity", 4), ("visibility_m", 1)):
         value = getattr(r, field)
         draw = rng.random()
         if value is not None:
-            air[field] = round(value.min + (value.max - value.min) * draw, rounding)
+            air[field] = round(at(_span(value), draw), rounding)
 
-    if r.part_temperature_offset_k is not None:
-        rng = rng_for(seed, "generation", index, _S_PARTS)
-        from scenes.assets import ROLES
-        from scenes.defaults import offset_for
 
-        for t_data in targets:
-            delta = r.part_temperature_offset_k.draw(rng)
-            thermal = t_data["thermal"]
-            if thermal["mode"] == "offset":
-                probe = Target.model_validate(t_data)
-                thermal["offsets_k"] = {role: round(offset_for(probe, role) + delta, 4) for role in ROLES}
-                if thermal.get("offsets_end_k") is not None:
-                    thermal["offsets_end_k"] = {role: round(offset_for(probe, role, end=True) + delta, 4)
-                                                for role in ROLES}
-            elif thermal["mode"] == "match_background":
-                thermal["contrast_k"] = round(thermal["contrast_k"] + delta, 4)
-                if thermal.get("contrast_end_k") is not None:
-                    thermal["contrast_end_k"] = round(thermal["contrast_end_k"] + delta, 4)
+def _draw_part_offsets(offset: Range, targets: list[dict], rng: np.random.Generator) -> None:
+    """One drawn temperature offset per target, added to every part offset (or to the contrast of a
+    target that matches its background)."""
+    from scenes.assets import ROLES
+    from scenes.defaults import offset_for
 
-    rng = rng_for(seed, "generation", index, _S_CAMERA)
-    off = rig["thermal_offset"]
+    for t_data in targets:
+        delta = offset.draw(rng)
+        thermal = t_data["thermal"]
+        if thermal["mode"] == "offset":
+            probe = Target.model_validate(t_data)
+            thermal["offsets_k"] = {role: round(offset_for(probe, role) + delta, 4) for role in ROLES}
+            if thermal.get("offsets_end_k") is not None:
+                thermal["offsets_end_k"] = {role: round(offset_for(probe, role, end=True) + delta, 4)
+                                            for role in ROLES}
+        elif thermal["mode"] == "match_background":
+            thermal["contrast_k"] = round(thermal["contrast_k"] + delta, 4)
+            if thermal.get("contrast_end_k") is not None:
+                thermal["contrast_end_k"] = round(thermal["contrast_end_k"] + delta, 4)
+
+
+def _draw_camera_offset(r: Randomisation, off: dict, rng: np.random.Generator) -> None:
+    """The thermal camera's yaw, pitch and baseline offsets from the RGB camera (always three draws)."""
     draws = rng.random(3)
     if r.camera_yaw_deg is not None:
         off["yaw_deg"] = round(off["yaw_deg"] + r.camera_yaw_deg.min + (r.camera_yaw_deg.max - r.camera_yaw_deg.min)
@@ -456,49 +497,51 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
         tx = r.camera_translation_m.min + (r.camera_translation_m.max - r.camera_translation_m.min) * draws[2]
         off["translation_m"] = (round(tx, 5), off["translation_m"][1], off["translation_m"][2])
 
-    rng = rng_for(seed, "generation", index, _S_DISTRACT)
+
+def _draw_distractors(r: Randomisation, targets: list[dict], primary: dict, rig: dict, base: Scenario,
+                      cam_pos: np.ndarray, duration: float, rng: np.random.Generator) -> None:
+    """``distractors`` extra targets (kinds from ``distractor_kinds``, sizes from
+    ``scenes.kinds.TARGET_SIZE_RANGE_M``) flying by near the primary target's line of sight."""
     n_extra = int(rng.integers(r.distractors[0], r.distractors[1] + 1))
-    if n_extra:
-        anchor = np.asarray(_trajectory_anchor(Target.model_validate(targets[p])), dtype=np.float64)
-        to_target = anchor - cam_pos
-        dist = float(np.linalg.norm(to_target))
-        bearing0 = math.degrees(math.atan2(to_target[0], to_target[1]))
-        elev0 = math.degrees(math.asin(to_target[2] / max(dist, 1e-9)))
-        half = 0.3 * (rig["rgb"]["hfov_deg"] if rig["look_at_m"] is None else base.camera_rig.rgb.hfov_deg)
-        names = {t["name"] for t in targets}
-        for j in range(n_extra):
-            kind = r.distractor_kinds[int(rng.integers(0, len(r.distractor_kinds)))]
-            b = bearing0 + float(rng.uniform(-half, half))
-            e = elev0 + float(rng.uniform(-half, half) * 0.8)
-            if kind == "bird":
-                d = dist * float(rng.uniform(0.4, 0.9))
-                size, speed = float(rng.uniform(0.3, 0.8)), float(rng.uniform(4.0, 10.0))
-            elif kind == "helicopter":
-                d = float(rng.uniform(300.0, 2500.0))
-                size, speed = float(rng.uniform(8.0, 14.0)), float(rng.uniform(15.0, 60.0))
-            else:
-                d = float(rng.uniform(3000.0, 9000.0))
-                size, speed = float(rng.uniform(30.0, 60.0)), float(rng.uniform(100.0, 220.0))
-            centre = cam_pos + d * _direction(b, e)
-            centre[2] = max(centre[2], cam_pos[2] + 3.0)
-            traj = _trajectory("flyby", centre, speed, duration, rng)
-            name = f"distractor{j + 1}"
-            while name in names:
-                name += "_"
-            names.add(name)
-            targets.append({"name": name, "kind": kind, "size_m": round(size, 3),
-                            "trajectory": traj.model_dump(mode="python"),
-                            "wingbeat_hz": round(float(rng.uniform(2.5, 6.0)), 3) if kind == "bird" else 4.0})
-            if kind == "helicopter":
-                targets[-1]["rotor"] = {"main_blades": 4, "main_rpm": 400.0}
+    if not n_extra:
+        return
+    anchor = np.asarray(_trajectory_anchor(Target.model_validate(primary)), dtype=np.float64)
+    to_target = anchor - cam_pos
+    dist = float(np.linalg.norm(to_target))
+    bearing0 = math.degrees(math.atan2(to_target[0], to_target[1]))
+    elev0 = math.degrees(math.asin(to_target[2] / max(dist, 1e-9)))
+    half = 0.3 * (rig["rgb"]["hfov_deg"] if rig["look_at_m"] is None else base.camera_rig.rgb.hfov_deg)
+    names = {t["name"] for t in targets}
+    for j in range(n_extra):
+        kind = pick(rng, r.distractor_kinds)
+        b = bearing0 + float(rng.uniform(-half, half))
+        e = elev0 + float(rng.uniform(-half, half) * 0.8)
+        if kind == "bird":
+            d = dist * float(rng.uniform(0.4, 0.9))
+            size, speed = target_size(rng, kind), float(rng.uniform(4.0, 10.0))
+        elif kind == "helicopter":
+            d = float(rng.uniform(300.0, 2500.0))
+            size, speed = target_size(rng, kind), float(rng.uniform(15.0, 60.0))
+        else:
+            d = float(rng.uniform(3000.0, 9000.0))
+            size, speed = target_size(rng, kind), float(rng.uniform(100.0, 220.0))
+        centre = cam_pos + d * direction(b, e)
+        centre[2] = max(centre[2], cam_pos[2] + 3.0)
+        traj = _trajectory("flyby", centre, speed, duration, rng)
+        name = f"distractor{j + 1}"
+        while name in names:
+            name += "_"
+        names.add(name)
+        targets.append({"name": name, "kind": kind, "size_m": round(size, 3),
+                        "trajectory": traj.model_dump(mode="python"),
+                        "wingbeat_hz": round(float(rng.uniform(2.5, 6.0)), 3) if kind == "bird" else 4.0})
+        if kind == "helicopter":
+            targets[-1]["rotor"] = {"main_blades": 4, "main_rpm": 400.0}
 
-    w, h = config.image_size
-    tw, th = config.thermal_image_size or config.image_size
-    rig["rgb"].update(width_px=w, height_px=h, spp=config.spp)
-    rig["thermal"].update(width_px=tw, height_px=th, spp=config.spp)
-    from scenes.loader import scenario_from_dict
 
-    return source, scenario_from_dict(data, source=f"{config.name}: sequence {index}")
+def _span(value: Range) -> Span:
+    """A config range as a (low, high) span."""
+    return (value.min, value.max)
 
 
 def _shift_z(trajectory: dict, dz: float) -> dict:
@@ -530,7 +573,7 @@ def _camera_mode(r: Randomisation, rig: dict, target: dict, cam_pos: np.ndarray,
                                                         - r.fixed_camera_offset_deg.min) * off
         axis_el = elevation if r.camera_elevation_deg is None else \
             r.camera_elevation_deg.min + (r.camera_elevation_deg.max - r.camera_elevation_deg.min) * el
-        rig["look_at_m"] = tuple(round(float(v), 4) for v in cam_pos + 100.0 * _direction(az, axis_el))
+        rig["look_at_m"] = tuple(round(float(v), 4) for v in cam_pos + 100.0 * direction(az, axis_el))
         rig["track_target"] = None
         rig["tracking"] = None
         return

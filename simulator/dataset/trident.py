@@ -19,6 +19,7 @@ import hashlib
 import json
 import shutil
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -27,6 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from scenes.kinds import DRONE_KINDS
 from scenes.loader import GENERATION_DIR
+from scenes.sampling import chance, drone_kind, log_uniform, sign, target_size, uniform
 from scenes.schema import Scenario
 from simulator.formats.trident import (
     FRAMES_PER_SEGMENT,
@@ -251,16 +253,6 @@ def clip_seed(seed: int, clip_index: int) -> int:
 # --------------------------------------------------------------------------------------------
 
 _SCENE_TAG = 11            # "generation" sub-stream of scene draws (independent of clip seeds)
-_DRONE_SIZE_M = {"quadcopter": (0.3, 0.6), "hexacopter": (0.6, 1.1), "fixed_wing": (1.0, 2.2)}
-
-
-def _u(rng: np.random.Generator, span: tuple[float, float]) -> float:
-    return float(rng.uniform(span[0], span[1]))
-
-
-def _logu(rng: np.random.Generator, span: tuple[float, float]) -> float:
-    return float(np.exp(rng.uniform(np.log(span[0]), np.log(span[1]))))
-
 
 
 class DrawnScene(BaseModel):
@@ -277,7 +269,28 @@ class DrawnScene(BaseModel):
     conditions: dict[str, Any]
 
 
+@dataclass(frozen=True)
+class _View:
+    """The drawn drone and the fixed camera looking at it (what the confusers are placed around)."""
+
+    kind: str
+    size_m: float
+    range_m: float
+    px: float
+    focal_px: float
+    hfov_deg: float
+    az_deg: float
+    el_deg: float
+    cam: np.ndarray
+    view: np.ndarray
+    centre: np.ndarray
+    lateral: np.ndarray
+    frame_w_m: float
+
+
 def _direction(az_deg: float, el_deg: float) -> np.ndarray:
+    """scenes.sampling.direction in numpy arithmetic (kept: numpy's and math's sin/cos may differ in
+    the last bit on some machines, and the drawn scenes must not)."""
     a, e = np.radians(az_deg), np.radians(el_deg)
     return np.array([np.cos(e) * np.sin(a), np.cos(e) * np.cos(a), np.sin(e)])
 
@@ -288,84 +301,130 @@ def draw_scene(dist: SceneDistribution, config: TridentConfig, seed: int, index:
     Camera: fixed (not tracking, so the twin's camera is the drone clip's), pointed at the middle of
     the drone's path, field of view chosen so the drone spans a drawn 3-30 px; the path stays inside
     the frame (``path_fraction`` of its width). Confusers (birds near drone size, an airliner far
-    behind) are placed in the view and appear in BOTH clips.
+    behind) are placed in the view and appear in BOTH clips. One stream, drawn in this order: drone
+    and view, drone path, confusers, sky, atmosphere, ambience, RF interferers, RF silence.
     """
     rng = rng_for(seed, "generation", _TRIDENT_SEED_TAG, _SCENE_TAG, index)
-    kind = dist.drone_kinds[int(rng.integers(len(dist.drone_kinds)))]
-    size_m = _u(rng, _DRONE_SIZE_M[kind])
-    range_m = _logu(rng, dist.range_m)
-    px = _logu(rng, dist.drone_px)
-    focal_px = px * range_m / size_m
-    half = config.video_px / 2.0
-    hfov = float(np.degrees(2 * np.arctan(half / focal_px)))
-    az, el = _u(rng, (-60.0, 60.0)), _u(rng, dist.elevation_deg)
-    cam = np.array([0.0, 0.0, 1.5])
-    view = _direction(az, el)
-    centre = cam + range_m * view
-    lateral = np.array([np.cos(np.radians(az)), -np.sin(np.radians(az)), 0.0])
-    frame_w_m = config.video_px * size_m / px
-    path_m = _u(rng, dist.path_fraction) * frame_w_m
-    sign = 1.0 if rng.random() < 0.5 else -1.0
-    climb = _u(rng, (-0.15, 0.15)) * path_m
-    p0 = centre - sign * lateral * path_m / 2 - np.array([0, 0, climb / 2])
-    p1 = centre + sign * lateral * path_m / 2 + np.array([0, 0, climb / 2])
-    speed = max(float(np.linalg.norm(p1 - p0)) / config.clip_duration_s, 0.02)
-    drone = {"name": "drone", "kind": kind, "size_m": round(size_m, 4),
-             "trajectory": {"kind": "waypoints", "speed_mps": round(speed, 4),
-                            "points_m": [np.round(p0, 3).tolist(), np.round(p1, 3).tolist()]}}
-    confusers: list[dict] = []
-    for b in range(int(rng.integers(0, dist.max_birds + 1))):
-        r_b = range_m * _u(rng, (0.4, 1.6))
-        b_size = float(np.clip(_logu(rng, (2.0, 24.0)) * r_b / focal_px, 0.15, 1.6))
-        off = _u(rng, (-0.45, 0.45)) * frame_w_m * r_b / range_m
-        up = _u(rng, (-0.35, 0.35)) * frame_w_m * r_b / range_m
-        start = cam + r_b * view + lateral * off + np.array([0, 0, up])
-        v = lateral * (_u(rng, (2.0, 9.0)) * (1 if rng.random() < 0.5 else -1)) + np.array([0, 0, _u(rng, (-0.5, 0.5))])
-        confusers.append({"name": f"bird{b}", "kind": "bird", "size_m": round(b_size, 3),
-                          "wingbeat_hz": round(_u(rng, (2.5, 6.0)), 2),
-                          "trajectory": {"kind": "flyby", "start_m": np.round(start, 2).tolist(),
-                                         "velocity_mps": np.round(v, 3).tolist()}})
-    airliner = rng.random() < dist.airliner_probability or not confusers
+    v = _draw_view(rng, dist, config)
+    drone = _draw_drone_path(rng, dist, config, v)
+    confusers = _draw_birds(rng, dist, v)
+    airliner = chance(rng, dist.airliner_probability) or not confusers
     if airliner:                       # every scene keeps >= 1 confuser (a scenario needs a target)
-        r_a = _u(rng, (5000.0, 11000.0))
-        a_el = float(np.clip(el + _u(rng, (-1.0, 1.0)) * hfov * 0.4, 2.0, 60.0))
-        start = cam + r_a * _direction(az, a_el) - lateral * _u(rng, (0.3, 0.6)) * r_a * np.radians(hfov)
-        v = lateral * _u(rng, (120.0, 220.0))
-        confusers.append({"name": "jet", "kind": "airliner", "size_m": round(_u(rng, (30.0, 60.0)), 1),
-                          "trajectory": {"kind": "flyby", "start_m": np.round(start, 1).tolist(),
-                                         "velocity_mps": np.round(v, 2).tolist()}})
-    sky: dict[str, Any] = {"sun": {"elevation_deg": round(_u(rng, dist.sun_elevation_deg), 2),
-                                   "azimuth_deg": round(_u(rng, (0.0, 360.0)), 2)},
-                           "turbidity": round(_u(rng, dist.turbidity), 2)}
-    cloudy = rng.random() < dist.cloud_probability
-    if cloudy:
-        sky["clouds"] = {"coverage": round(_u(rng, dist.cloud_coverage), 3)}
-    atmosphere = {"air_temperature_k": round(_u(rng, dist.air_temperature_k), 2),
-                  "relative_humidity": round(_u(rng, dist.relative_humidity), 3),
-                  "visibility_m": round(_logu(rng, dist.visibility_m), 1)}
+        confusers.append(_draw_airliner(rng, v))
+    sky, cloudy = _draw_sky(rng, dist)
+    atmosphere = _draw_atmosphere(rng, dist)
     ambience = draw_ambience(rng, dist.ambience)
-    wifi_on, wifi_db = rng.random() < dist.wifi_probability, _u(rng, dist.wifi_rx_dbm)
-    bt_on, bt_db = rng.random() < dist.bluetooth_probability, _u(rng, dist.bluetooth_rx_dbm)
-    rf = config.rf.model_copy(update={"wifi_rx_dbm": round(wifi_db, 1) if wifi_on else None,
-                                      "bluetooth_rx_dbm": round(bt_db, 1) if bt_on else None})
-    rf_silent = bool(rng.random() < dist.rf_silent_probability)
+    rf, wifi_on, bt_on = _draw_interferers(rng, dist, config.rf)
+    rf_silent = chance(rng, dist.rf_silent_probability)
     name = f"scene_{index:04d}"
     base = {"name": name, "duration_s": config.clip_duration_s, "frame_rate_hz": float(config.video_fps),
             "sky": sky, "atmosphere": atmosphere,
-            "camera_rig": {"position_m": cam.tolist(), "look_at_m": np.round(centre, 3).tolist(),
+            "camera_rig": {"position_m": v.cam.tolist(), "look_at_m": np.round(v.centre, 3).tolist(),
                            "rgb": {"width_px": config.video_px, "height_px": config.video_px,
-                                   "hfov_deg": round(hfov, 4)},
-                           "thermal": {"width_px": 16, "height_px": 16, "hfov_deg": round(hfov, 4)}}}
+                                   "hfov_deg": round(v.hfov_deg, 4)},
+                           "thermal": {"width_px": 16, "height_px": 16, "hfov_deg": round(v.hfov_deg, 4)}}}
     drone_s = Scenario.model_validate({**base, "targets": [*confusers, drone]})
     twin_s = Scenario.model_validate({**base, "targets": confusers})
-    conditions = {"drone_kind": kind, "drone_size_m": round(size_m, 3), "range_m": round(range_m, 1),
-                  "drone_px_drawn": round(px, 2), "hfov_deg": round(hfov, 3), "elevation_deg": round(el, 2),
+    conditions = {"drone_kind": v.kind, "drone_size_m": round(v.size_m, 3), "range_m": round(v.range_m, 1),
+                  "drone_px_drawn": round(v.px, 2), "hfov_deg": round(v.hfov_deg, 3),
+                  "elevation_deg": round(v.el_deg, 2),
                   "sun_elevation_deg": sky["sun"]["elevation_deg"], "cloudy": bool(cloudy),
                   "n_birds": sum(c["kind"] == "bird" for c in confusers), "airliner": bool(airliner),
                   "rain": ambience.rain_db is not None, "traffic": ambience.traffic_db is not None,
                   "wifi": bool(wifi_on), "bluetooth": bool(bt_on), "rf_silent": rf_silent}
     return DrawnScene(index=index, name=name, drone=drone_s, twin=twin_s, ambience=ambience,
                       rf_silent=rf_silent, rf=rf, conditions=conditions)
+
+
+def _draw_view(rng: np.random.Generator, dist: SceneDistribution, config: TridentConfig) -> _View:
+    """The drone (kind, size from scenes.kinds.TARGET_SIZE_RANGE_M, range, apparent px) and the
+    camera's view of it (field of view, azimuth, elevation). Six draws."""
+    kind = drone_kind(rng, dist.drone_kinds)
+    size_m = target_size(rng, kind)
+    range_m = log_uniform(rng, dist.range_m)
+    px = log_uniform(rng, dist.drone_px)
+    focal_px = px * range_m / size_m
+    half = config.video_px / 2.0
+    hfov = float(np.degrees(2 * np.arctan(half / focal_px)))
+    az, el = uniform(rng, (-60.0, 60.0)), uniform(rng, dist.elevation_deg)
+    cam = np.array([0.0, 0.0, 1.5])
+    view = _direction(az, el)
+    lateral = np.array([np.cos(np.radians(az)), -np.sin(np.radians(az)), 0.0])
+    return _View(kind=kind, size_m=size_m, range_m=range_m, px=px, focal_px=focal_px, hfov_deg=hfov, az_deg=az,
+                 el_deg=el, cam=cam, view=view, centre=cam + range_m * view, lateral=lateral,
+                 frame_w_m=config.video_px * size_m / px)
+
+
+def _draw_drone_path(rng: np.random.Generator, dist: SceneDistribution, config: TridentConfig, v: _View) -> dict:
+    """The drone target: a two-point path across the view centre (length ``path_fraction`` of the
+    frame width, drawn direction and climb), flown in the clip's duration. Three draws."""
+    path_m = uniform(rng, dist.path_fraction) * v.frame_w_m
+    way = sign(rng)
+    climb = uniform(rng, (-0.15, 0.15)) * path_m
+    p0 = v.centre - way * v.lateral * path_m / 2 - np.array([0, 0, climb / 2])
+    p1 = v.centre + way * v.lateral * path_m / 2 + np.array([0, 0, climb / 2])
+    speed = max(float(np.linalg.norm(p1 - p0)) / config.clip_duration_s, 0.02)
+    return {"name": "drone", "kind": v.kind, "size_m": round(v.size_m, 4),
+            "trajectory": {"kind": "waypoints", "speed_mps": round(speed, 4),
+                           "points_m": [np.round(p0, 3).tolist(), np.round(p1, 3).tolist()]}}
+
+
+def _draw_birds(rng: np.random.Generator, dist: SceneDistribution, v: _View) -> list[dict]:
+    """0..max_birds birds near the drone's range, sized to span 2-24 px, flying across the view."""
+    birds: list[dict] = []
+    for b in range(int(rng.integers(0, dist.max_birds + 1))):
+        r_b = v.range_m * uniform(rng, (0.4, 1.6))
+        b_size = float(np.clip(log_uniform(rng, (2.0, 24.0)) * r_b / v.focal_px, 0.15, 1.6))
+        off = uniform(rng, (-0.45, 0.45)) * v.frame_w_m * r_b / v.range_m
+        up = uniform(rng, (-0.35, 0.35)) * v.frame_w_m * r_b / v.range_m
+        start = v.cam + r_b * v.view + v.lateral * off + np.array([0, 0, up])
+        vel = v.lateral * (uniform(rng, (2.0, 9.0)) * sign(rng)) + np.array([0, 0, uniform(rng, (-0.5, 0.5))])
+        birds.append({"name": f"bird{b}", "kind": "bird", "size_m": round(b_size, 3),
+                      "wingbeat_hz": round(uniform(rng, (2.5, 6.0)), 2),
+                      "trajectory": {"kind": "flyby", "start_m": np.round(start, 2).tolist(),
+                                     "velocity_mps": np.round(vel, 3).tolist()}})
+    return birds
+
+
+def _draw_airliner(rng: np.random.Generator, v: _View) -> dict:
+    """An airliner 5-11 km behind the drone, near its elevation, crossing the view (size from
+    scenes.kinds.TARGET_SIZE_RANGE_M). Six draws."""
+    r_a = uniform(rng, (5000.0, 11000.0))
+    a_el = float(np.clip(v.el_deg + uniform(rng, (-1.0, 1.0)) * v.hfov_deg * 0.4, 2.0, 60.0))
+    start = (v.cam + r_a * _direction(v.az_deg, a_el)
+             - v.lateral * uniform(rng, (0.3, 0.6)) * r_a * np.radians(v.hfov_deg))
+    vel = v.lateral * uniform(rng, (120.0, 220.0))
+    return {"name": "jet", "kind": "airliner", "size_m": round(target_size(rng, "airliner"), 1),
+            "trajectory": {"kind": "flyby", "start_m": np.round(start, 1).tolist(),
+                           "velocity_mps": np.round(vel, 2).tolist()}}
+
+
+def _draw_sky(rng: np.random.Generator, dist: SceneDistribution) -> tuple[dict[str, Any], bool]:
+    """Sun elevation and azimuth, turbidity, and clouds with ``cloud_probability`` (sky, cloudy)."""
+    sky: dict[str, Any] = {"sun": {"elevation_deg": round(uniform(rng, dist.sun_elevation_deg), 2),
+                                   "azimuth_deg": round(uniform(rng, (0.0, 360.0)), 2)},
+                           "turbidity": round(uniform(rng, dist.turbidity), 2)}
+    cloudy = chance(rng, dist.cloud_probability)
+    if cloudy:
+        sky["clouds"] = {"coverage": round(uniform(rng, dist.cloud_coverage), 3)}
+    return sky, cloudy
+
+
+def _draw_atmosphere(rng: np.random.Generator, dist: SceneDistribution) -> dict[str, float]:
+    """Air temperature, relative humidity and visibility (log-uniform). Three draws."""
+    return {"air_temperature_k": round(uniform(rng, dist.air_temperature_k), 2),
+            "relative_humidity": round(uniform(rng, dist.relative_humidity), 3),
+            "visibility_m": round(log_uniform(rng, dist.visibility_m), 1)}
+
+
+def _draw_interferers(rng: np.random.Generator, dist: SceneDistribution, rf: RFConfig) -> tuple[RFConfig, bool, bool]:
+    """Wi-Fi and Bluetooth interferers, each on with its probability at a drawn received level
+    (rf config, wifi on, bluetooth on). Four draws."""
+    wifi_on, wifi_db = chance(rng, dist.wifi_probability), uniform(rng, dist.wifi_rx_dbm)
+    bt_on, bt_db = chance(rng, dist.bluetooth_probability), uniform(rng, dist.bluetooth_rx_dbm)
+    rf = rf.model_copy(update={"wifi_rx_dbm": round(wifi_db, 1) if wifi_on else None,
+                               "bluetooth_rx_dbm": round(bt_db, 1) if bt_on else None})
+    return rf, wifi_on, bt_on
 
 
 def scene_splits(dist: SceneDistribution) -> list[str]:

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from scenes.sampling import drone_kind, log_uniform, pick, target_size, uniform
 from simulator.seeding import rng_for
 
 CLASSES = ("DRONE", "HELICOPTER", "BACKGROUND")
@@ -278,6 +279,7 @@ def compare_statistics(real: dict[str, np.ndarray], synthetic: dict[str, np.ndar
 def _config_model():
     from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+    from scenes.kinds import BENCHMARK_DRONE_SIZE_RANGE_M, DRONE_KINDS
     from simulator.physics.acoustics import AmbienceDistribution
     from simulator.sensors.microphone import RecorderConfig
 
@@ -291,10 +293,8 @@ def _config_model():
         sample_rate_hz: int = Field(default=44_100, ge=32_000, le=96_000)
         full_scale_pa: float = Field(default=0.1, gt=0.0, description="sample 1.0 == this pressure")
         drone_kinds: list[str] = Field(default=["quadcopter"], min_length=1)
-        # quadcopters span the benchmark's two larger drones (DJI Phantom 4 Pro 0.35 m, DJI Flame Wheel F450
-        # 0.45 m: 63 of the 74 calibration IR clips); the 0.1 m Hubsan H107D+ (11 clips) is left out: at
-        # the cube-law mass its sound power is ~25 dB under an F450's (docs/SIM2REAL_AUDIO.md, third pass)
-        drone_size_m: dict[str, Span] = {"quadcopter": (0.3, 0.5), "hexacopter": (0.5, 1.1), "fixed_wing": (1.0, 2.2)}
+        drone_size_m: dict[str, Span] = Field(default_factory=lambda: dict(BENCHMARK_DRONE_SIZE_RANGE_M),
+                                              description="size span per drone kind (default: scenes.kinds)")
         drone_range_m: list[Span] = Field(default=[(2.0, 12.0), (8.0, 50.0)], min_length=1,
                                           description="range spans, one picked uniformly per clip")
         drone_speed_mps: Span = (0.0, 10.0)
@@ -317,7 +317,7 @@ def _config_model():
         @model_validator(mode="after")
         def _check(self):
             for kind in self.drone_kinds:
-                if kind not in ("quadcopter", "hexacopter", "fixed_wing"):
+                if kind not in DRONE_KINDS:
                     raise ValueError(f"drone_kinds: unknown drone kind {kind!r}")
                 if kind not in self.drone_size_m:
                     raise ValueError(f"drone_size_m: no size span for {kind!r}")
@@ -352,32 +352,24 @@ def synthetic_audio_config(config: dict | None = None):
         raise UserInputError(f"synthetic audio config: {where}: {first['msg']}") from exc
 
 
-def _u(rng: np.random.Generator, span: tuple[float, float]) -> float:
-    return float(rng.uniform(span[0], span[1]))
-
-
-def _logu(rng: np.random.Generator, span: tuple[float, float]) -> float:
-    return float(np.exp(rng.uniform(np.log(span[0]), np.log(span[1]))))
-
-
 def _drone_scenario(cfg, rng: np.random.Generator, name: str):
     from scenes.schema import Scenario
 
-    kind = cfg.drone_kinds[int(rng.integers(len(cfg.drone_kinds)))]
-    size_m = _u(rng, cfg.drone_size_m[kind])
-    span = cfg.drone_range_m[int(rng.integers(len(cfg.drone_range_m)))]
-    range_m = _logu(rng, span)
-    az, el = np.radians(_u(rng, (-180.0, 180.0))), np.radians(_u(rng, cfg.elevation_deg))
+    kind = drone_kind(rng, cfg.drone_kinds)
+    size_m = target_size(rng, kind, cfg.drone_size_m)
+    span = pick(rng, cfg.drone_range_m)
+    range_m = log_uniform(rng, span)
+    az, el = np.radians(uniform(rng, (-180.0, 180.0))), np.radians(uniform(rng, cfg.elevation_deg))
     mic = np.array([0.0, 0.0, 1.5])
     centre = mic + range_m * np.array([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)])
     centre[2] = max(centre[2], 2.0)
-    speed = _u(rng, cfg.drone_speed_mps)
-    heading = _u(rng, (0.0, 2 * np.pi))
+    speed = uniform(rng, cfg.drone_speed_mps)
+    heading = uniform(rng, (0.0, 2 * np.pi))
     if kind == "fixed_wing":
         speed = max(speed, 12.0)
     if speed < 0.5:
         trajectory = {"kind": "hover", "center_m": np.round(centre, 3).tolist(),
-                      "drift_m": round(_u(rng, (0.2, 1.5)), 2)}
+                      "drift_m": round(uniform(rng, (0.2, 1.5)), 2)}
     else:
         half = 0.5 * speed * cfg.duration_s * np.array([np.cos(heading), np.sin(heading), 0.0])
         trajectory = {"kind": "waypoints", "speed_mps": round(speed, 3),
@@ -407,16 +399,17 @@ def _helicopter_scenario(cfg, rng: np.random.Generator, name: str):
     passing or hovering at a drawn range (log-uniform), height and speed, with drawn air."""
     from scenes.schema import Scenario
 
-    range_m = _logu(rng, cfg.helicopter_range_m)
-    speed = _u(rng, cfg.helicopter_speed_mps)
-    height = min(_u(rng, cfg.helicopter_height_m), 0.9 * range_m)
-    heading, az = _u(rng, (0.0, 2 * np.pi)), _u(rng, (0.0, 2 * np.pi))
+    range_m = log_uniform(rng, cfg.helicopter_range_m)
+    speed = uniform(rng, cfg.helicopter_speed_mps)
+    height = min(uniform(rng, cfg.helicopter_height_m), 0.9 * range_m)
+    heading, az = uniform(rng, (0.0, 2 * np.pi)), uniform(rng, (0.0, 2 * np.pi))
     horiz = np.sqrt(max(range_m ** 2 - height ** 2, 1.0))
     centre = np.array([horiz * np.cos(az), horiz * np.sin(az), height])
     blades = int(rng.choice(cfg.helicopter_blades))
-    rotor = {"main_blades": blades, "main_rpm": round(_u(rng, cfg.helicopter_rpm), 1)}
-    size_m = round(_u(rng, cfg.helicopter_diameter_m), 2)
-    air = {"air_temperature_k": round(_u(rng, (273.0, 303.0)), 2), "relative_humidity": round(_u(rng, (0.3, 0.95)), 3)}
+    rotor = {"main_blades": blades, "main_rpm": round(uniform(rng, cfg.helicopter_rpm), 1)}
+    size_m = round(uniform(rng, cfg.helicopter_diameter_m), 2)
+    air = {"air_temperature_k": round(uniform(rng, (273.0, 303.0)), 2),
+           "relative_humidity": round(uniform(rng, (0.3, 0.95)), 3)}
     if speed < 1.0:
         trajectory = {"kind": "hover", "center_m": np.round(centre, 2).tolist(), "drift_m": 2.0}
     else:
