@@ -11,6 +11,8 @@ silently change the rendered geometry).
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from scenes.assets import build_asset
@@ -115,12 +117,32 @@ class AnimatedAsset:
         return {role: np.vstack([v for v, r in zip(parts, roles) if r == role]) for role in self.roles}
 
 
+ASSET_CACHE_SIZE = 16        # AnimatedAssets kept per process (a few hundred kB each)
+
+
+@lru_cache(maxsize=ASSET_CACHE_SIZE)
+def animated_asset(kind: str, size_m: float, main_blades: int) -> AnimatedAsset:
+    """``AnimatedAsset(kind, size_m, main_blades)``, shared by every sequence with that exact target
+    (a clip and its counterfactual twin, clips of the same preset): it is a function of these three
+    values only and is not changed after construction (its arrays are made read-only)."""
+    asset = AnimatedAsset(kind, size_m, main_blades)
+    for _, verts, motion in asset._parts:
+        verts.flags.writeable = False
+        if motion is not None:
+            motion[1].flags.writeable = False
+            motion[2].flags.writeable = False
+    for faces in asset.faces_by_role.values():
+        faces.flags.writeable = False
+    return asset
+
+
 class TrackGeometry:
     """World-space vertices per role of one target, per frame (cached)."""
 
     def __init__(self, track: TargetTrack):
         self.track = track
-        self.asset = AnimatedAsset(track.kind, track.size_m, track.n_blades if track.kind == "helicopter" else 4)
+        self.asset = animated_asset(track.kind, float(track.size_m),
+                                    int(track.n_blades) if track.kind == "helicopter" else 4)
         self._cache: dict[int, dict[str, np.ndarray]] = {}
 
     @property

@@ -39,6 +39,7 @@ from simulator.render import scalar
 from simulator.render.geometry import TrackGeometry
 from simulator.render.plan import (
     BATCH_FRAMES,
+    BATCH_PIXEL_BUDGET,
     COVERAGE_SUBSAMPLES,
     CameraPlan,
     Tile,
@@ -120,6 +121,20 @@ def _neg_directions_f32(width: int, height: int, to_world_bytes: bytes) -> np.nd
     return out
 
 
+@lru_cache(maxsize=2)
+def _sky_weights(width: int, height: int, to_world_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """Per upper-hemisphere texel: the irradiance weight cos(zenith) x solid angle (flattened) and
+    the near-horizon band the airlight is averaged over (``up`` in (0.01, 0.06))."""
+    half = height // 2
+    up = _env_directions_cached(width, height, to_world_bytes)[:half, :, 2]
+    # texel solid angle depends on the row only: (2 pi / W)(pi / H) sin(theta_row)
+    row_sa = (2 * np.pi / width) * (np.pi / height) * np.sin((np.arange(half) + 0.5) / height * np.pi)
+    weight = (up * row_sa[:, None]).ravel()
+    horizon = (up > 0.01) & (up < 0.06)
+    weight.flags.writeable = horizon.flags.writeable = False
+    return weight, horizon
+
+
 def _env_directions(width: int, height: int, to_world: np.ndarray) -> np.ndarray:
     """World direction of each texel of a Mitsuba lat-long map (local +y up, phi = atan2(x, -z))."""
     u = (np.arange(width) + 0.5) / width
@@ -141,7 +156,8 @@ class _SkyBake:
     sun_irradiance: np.ndarray
     sun_elevation_deg: float
     sky_irradiance: np.ndarray
-    rgb: np.ndarray
+    rgb: np.ndarray                          # a read-only view of rgb_bitmap's pixels
+    rgb_bitmap: object                       # mi.Bitmap of the RGB map (the envmap plugin only reads it)
     airlight_rgb: np.ndarray
     thermal: np.ndarray | None = None        # the LWIR map, filled when a thermal camera first needs it
     thermal_sky: ThermalSky | None = None    # the LWIR sky model, made on first use
@@ -187,6 +203,7 @@ class SkyMaps:
         self.sun_elevation_deg = bake.sun_elevation_deg
         self.sky_irradiance = bake.sky_irradiance
         self.rgb = bake.rgb
+        self.rgb_bitmap = bake.rgb_bitmap
         self.airlight_rgb = bake.airlight_rgb
 
     @staticmethod
@@ -206,22 +223,26 @@ class SkyMaps:
         # the lower half is the ground (one colour)
         half = ENV_HEIGHT // 2
         top = dirs[:half]
-        up = top[..., 2]
         sun_el, sun_az = sun_elevation_azimuth_deg(scenario.sky.sun)
         sun_direction = direction_from_elevation_azimuth(sun_el, sun_az)
         sunsky = self._sunsky_dict(scenario)
         sky_only = mi.load_dict({**sunsky, "sun_scale": 0.0})
         wi = _neg_directions_f32(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())
         sun_wi = -sun_direction
+        # the map is written straight into the Bitmap the scenes' envmaps read (made once per bake;
+        # the plugin copies it) and kept as a view of its pixels: one copy of the map in memory
+        bitmap = mi.Bitmap(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, [ENV_WIDTH, ENV_HEIGHT])
+        full = np.asarray(bitmap)
+        rgb = full[:half]
         if is_scalar(mi):  # one direction per call (simulator.render.scalar)
-            rgb = scalar.eval_emitter(mi, sky_only, wi).reshape(half, ENV_WIDTH, 3)
+            rgb[...] = scalar.eval_emitter(mi, sky_only, wi).reshape(half, ENV_WIDTH, 3)
             sun_only = mi.load_dict({**sunsky, "sky_scale": 0.0})
             sun_value = (scalar.eval_emitter(mi, sun_only, sun_wi[:, None]).astype(np.float64).ravel()
                          * SUN_SOLID_ANGLE_SR)
         else:
             si = dr.zeros(mi.SurfaceInteraction3f, wi.shape[1])
             si.wi = mi.Vector3f(wi[0], wi[1], wi[2])
-            rgb = np.array(sky_only.eval(si), dtype=np.float32).T.reshape(half, ENV_WIDTH, 3)
+            rgb.reshape(-1, 3)[...] = np.array(sky_only.eval(si), dtype=np.float32).T
             # both helper emitters are always created (and freed) in the same order, so the scene's
             # own emitters get the same Dr.Jit registry ids in every sequence and the compiled
             # kernels are reused instead of rebuilt per sequence
@@ -232,9 +253,7 @@ class SkyMaps:
             del si, si1
         sun_irradiance = sun_value if sun_el > 0 else np.zeros(3)
         del sky_only, sun_only
-        # texel solid angle depends on the row only: (2 pi / W)(pi / H) sin(theta_row)
-        row_sa = (2 * np.pi / ENV_WIDTH) * (np.pi / ENV_HEIGHT) * np.sin((np.arange(half) + 0.5) / ENV_HEIGHT * np.pi)
-        weight = (up * row_sa[:, None]).ravel()
+        weight, horizon = _sky_weights(ENV_WIDTH, ENV_HEIGHT, rot.tobytes())
         sky_irradiance = weight @ rgb.reshape(-1, 3).astype(np.float64)
         sun_cos = max(sun_direction[2], 0.0)
         ground = scenario.sky.ground_albedo * (sky_irradiance + sun_irradiance * sun_cos) / np.pi
@@ -244,14 +263,11 @@ class SkyMaps:
             cloud_rgb = (0.75 * (sky_irradiance + sun_irradiance * sun_cos) / np.pi).astype(np.float32)
             rgb += cover * (cloud_rgb - rgb)  # (1 - cover) rgb + cover cloud_rgb
             sun_irradiance = sun_irradiance * (1 - 0.8 * clouds.coverage)
-        full = np.empty((ENV_HEIGHT, ENV_WIDTH, 3), np.float32)
-        full[:half] = rgb
         full[half:] = ground
-        horizon = (up > 0.01) & (up < 0.06)
         airlight = rgb[horizon].astype(np.float64).mean(axis=0)
         for a in (full, sun_direction, sun_irradiance, sky_irradiance, airlight):
             a.flags.writeable = False
-        return _SkyBake(sun_direction, sun_irradiance, float(sun_el), sky_irradiance, full, airlight)
+        return _SkyBake(sun_direction, sun_irradiance, float(sun_el), sky_irradiance, full, bitmap, airlight)
 
     @property
     def thermal_sky(self) -> ThermalSky:
@@ -380,14 +396,14 @@ class _View:
         mi, owner = self.mi, self.owner
         if self.which == "rgb":
             scene: dict = {"type": "scene"}
-            env = owner.sky.rgb.copy()            # the bake is shared and read-only; Bitmap wants a writable array
+            bitmap = owner.sky.rgb_bitmap         # shared with the bake (read-only)
             if np.any(owner.sky.sun_irradiance > 0):
                 scene["sun"] = {"type": "directional", "direction": (-owner.sky.sun_direction).tolist(),
                                 "irradiance": {"type": "rgb", "value": owner.sky.sun_irradiance.tolist()}}
         else:
             scene = {"type": "scene"}
-            env = np.repeat(owner.sky.thermal[..., None], 3, axis=-1)
-        scene["sky"] = {"type": "envmap", "bitmap": mi.Bitmap(env), "to_world": owner.sky.to_world}
+            bitmap = mi.Bitmap(np.repeat(owner.sky.thermal[..., None], 3, axis=-1))
+        scene["sky"] = {"type": "envmap", "bitmap": bitmap, "to_world": owner.sky.to_world}
         props = mi.Properties()
         props["bsdf"] = mi.load_dict({"type": "diffuse",
                                       "reflectance": {"type": "mesh_attribute", "name": f"{self.attr}_albedo"}})
@@ -569,52 +585,65 @@ class _View:
         if region is not None and self.plan.mode == "roi" and self.static:
             return self.sky(frame)[region[1]:region[3], region[0]:region[2]]
         x0, y0, x1, y1 = region if region is not None else (0, 0, cam.width_px, cam.height_px)
-        h, w = y1 - y0, x1 - x0
-        if self.terrain is not None:
-            image = self._terrain_background(frame, x0, y0, w, h)
-            if region is None and self.static:
-                self._sky_cache = (pose, image)
-            return image
-
-        image = self._sky_pixels(frame, x0, y0, y1 - y0, x1 - x0)
+        image = self._background([frame], x0, y0, y1 - y0, x1 - x0)[0]
         if region is None and self.static:
             self._sky_cache = (pose, image)
         return image
 
-    def _sky_pixels(self, frame: int, x0: int, y0: int, h: int, w: int) -> np.ndarray:
-        """(h, w, 3) environment radiance at the centres of pixels [y0:y0+h, x0:x0+w]."""
-        dr, mi = self.dr, self.mi
-        idx = dr.arange(mi.UInt32, h * w)
-        wo = self._opaque(mi.UInt32, w)
-        x = mi.Float(idx % wo + self._opaque(mi.UInt32, x0)) + 0.5
-        y = mi.Float(idx // wo + self._opaque(mi.UInt32, y0)) + 0.5
-        # camera vectors go in as arrays (Python floats would become kernel literals and recompile
-        # the kernel for every camera pose)
-        ray = self._rays(dr.zeros(mi.UInt32, h * w), x, y, self._camera_arrays([frame]))
-        si = dr.zeros(mi.SurfaceInteraction3f, h * w)
-        si.wi = -ray.d
-        return np.array(self.environment.eval(si), dtype=np.float32).T.reshape(h, w, 3)
+    def backgrounds(self, frames: list[int]) -> list[np.ndarray]:
+        """Each frame's whole (H, W, 3) ROI background, private to the caller (it composites the
+        tiles over it): a copy of the cached sky for a camera that does not turn, else evaluated for
+        several frames per launch (each pixel's value does not depend on the launch it is in)."""
+        if self.static:
+            return [self.sky(frame).copy() for frame in frames]
+        cam = self.camera
+        per_launch = max(1, BATCH_PIXEL_BUDGET // (cam.width_px * cam.height_px))
+        out: list[np.ndarray] = []
+        for start in range(0, len(frames), per_launch):
+            out += list(self._background(frames[start:start + per_launch], 0, 0, cam.height_px, cam.width_px))
+        return out
 
-    def _terrain_background(self, frame: int, x0: int, y0: int, w: int, h: int) -> np.ndarray:
-        """(h, w, 3) background (sky and terrain, no targets): one ray per pixel centre from the
-        background slot, which holds the terrain and no targets. Smooth terrain (per-vertex
-        emission) matches the tiles' jittered samples to well below a grey level; an edge of the
-        terrain crossing a tile border can differ by its anti-aliasing (measured: 10x cheaper than
-        the tiles' spp samples per pixel, which a turning camera pays every frame)."""
-        dr, mi, cam, plan = self.dr, self.mi, self.camera, self.plan
+    def _background(self, frames: list[int], x0: int, y0: int, h: int, w: int) -> np.ndarray:
+        """(len(frames), h, w, 3) background at the centres of pixels [y0:y0+h, x0:x0+w] of each
+        frame: the sky, or with terrain the background slot's sky and terrain; one launch."""
+        dr, mi = self.dr, self.mi
         n = h * w
-        idx = dr.arange(mi.UInt32, n)
-        wo = self._opaque(mi.UInt32, w)
-        x = mi.Float(idx % wo + self._opaque(mi.UInt32, x0)) + 0.5
-        y = mi.Float(idx // wo + self._opaque(mi.UInt32, y0)) + 0.5
-        fwd, up = cam.forward[frame], cam.up[frame]
-        row = np.concatenate([plan.slot_offset_m(plan.batch_frames), fwd, np.cross(fwd, up), up])
-        table = np.asarray([row, row], np.float64)
+        idx = dr.arange(mi.UInt32, n * len(frames))
+        no, wo = self._opaque(mi.UInt32, n), self._opaque(mi.UInt32, w)
+        which = idx // no            # lane -> index into ``frames``
+        pix = idx % no
+        x = mi.Float(pix % wo + self._opaque(mi.UInt32, x0)) + 0.5
+        y = mi.Float(pix // wo + self._opaque(mi.UInt32, y0)) + 0.5
+        if self.terrain is not None:
+            value = self._terrain_background(which, x, y, frames)
+        else:
+            value = self._sky_pixels(which, x, y, frames)
+        return np.array(value, dtype=np.float32).T.reshape(len(frames), h, w, 3)
+
+    def _sky_pixels(self, which, x, y, frames: list[int]):
+        """Environment radiance through image positions (x, y) of frame ``frames[which]`` (per lane)."""
+        dr, mi = self.dr, self.mi
+        # camera vectors go in as arrays (Python floats would become kernel literals and recompile
+        # the kernel for every camera pose); the origin (the slot's) does not change a sky lookup
+        ray = self._rays(which, x, y, self._camera_arrays(frames))
+        si = dr.zeros(mi.SurfaceInteraction3f, dr.width(x))
+        si.wi = -ray.d
+        return self.environment.eval(si)
+
+    def _terrain_background(self, which, x, y, frames: list[int]):
+        """Background (sky and terrain, no targets) through image positions (x, y) of frame
+        ``frames[which]`` (per lane): one ray per pixel centre from the background slot, which
+        holds the terrain and no targets. Smooth terrain (per-vertex emission) matches the tiles'
+        jittered samples to well below a grey level; an edge of the terrain crossing a tile border
+        can differ by its anti-aliasing (measured: 10x cheaper than the tiles' spp samples per
+        pixel, which a turning camera pays every frame)."""
+        mi, cam, plan = self.mi, self.camera, self.plan
+        rows = [np.concatenate([plan.slot_offset_m(plan.batch_frames), cam.forward[f],
+                                np.cross(cam.forward[f], cam.up[f]), cam.up[f]]) for f in frames]
+        table = np.asarray(rows + rows[:1], np.float64)  # >= 2 rows: size-1 arrays become kernel literals
         cams = [mi.Float(table[:, c].astype(np.float32)) for c in range(12)]
-        ray = self._rays(dr.zeros(mi.UInt32, n), x, y, cams)
-        si = self.scene.ray_intersect(ray)
-        value = si.emitter(self.scene).eval(si)
-        return np.array(value, dtype=np.float32).T.reshape(h, w, 3)
+        si = self.scene.ray_intersect(self._rays(which, x, y, cams))
+        return si.emitter(self.scene).eval(si)
 
     def coverage(self, slot_frames: list[int], tiles: dict[tuple[int, int], Tile], wanted: set[int]) -> dict:
         """Coverage rays (regular k x k grid per pixel) over each target's projected box in each
@@ -727,12 +756,17 @@ class _ScalarView(_View):
         img = value.reshape(-1, self.spp, 3).sum(axis=1, dtype=np.float32) / np.float32(self.spp)
         return img.reshape(n_tiles, plan.tile_height, plan.tile_width, 3)
 
-    def _sky_pixels(self, frame: int, x0: int, y0: int, h: int, w: int) -> np.ndarray:
+    def _background(self, frames: list[int], x0: int, y0: int, h: int, w: int) -> np.ndarray:
+        if self.terrain is not None:
+            return super()._background(frames, x0, y0, h, w)
         idx = np.arange(h * w)
         x = (idx % w + x0).astype(np.float32) + np.float32(0.5)
         y = (idx // w + y0).astype(np.float32) + np.float32(0.5)
-        _, d = self._rays(np.zeros(h * w, np.int64), x, y, self._camera_arrays([frame]))
-        return scalar.eval_emitter(self.mi, self.environment, -d.T).reshape(h, w, 3)
+        images = []
+        for frame in frames:
+            _, d = self._rays(np.zeros(h * w, np.int64), x, y, self._camera_arrays([frame]))
+            images.append(scalar.eval_emitter(self.mi, self.environment, -d.T).reshape(h, w, 3))
+        return np.stack(images)
 
     def _hits(self, slots: np.ndarray, xs: np.ndarray, ys: np.ndarray, slot_frames: list[int]) -> tuple:
         o, d = self._rays(slots, xs, ys, self._camera_arrays(slot_frames))
@@ -932,18 +966,21 @@ class SequenceRenderer:
             radiance = view.render_tiles(render_seed(self.timeline.seed, batch, PASS_INDEX[which]), tiles)
             slots = {f - batch * b for f in wanted}
             cover = view.coverage(slot_frames, tiles, slots) if self.labels else {}
-            for frame in wanted:
-                out[frame][which] = self._assemble(view, frame, frame - batch * b, tiles, radiance, cover)
+            backgrounds = view.backgrounds(wanted) if view.plan.mode == "roi" else [None] * len(wanted)
+            for frame, background in zip(wanted, backgrounds):
+                out[frame][which] = self._assemble(view, frame, frame - batch * b, tiles, radiance, cover, background)
         return {f: self._buffers(parts) for f, parts in out.items()}
 
-    def _assemble(self, view: _View, frame: int, slot: int, tiles, radiance, cover) -> tuple:
+    def _assemble(self, view: _View, frame: int, slot: int, tiles, radiance, cover,
+                  background: np.ndarray | None) -> tuple:
+        """One frame's image (ROI mode: the tiles composited in place over ``background``, the
+        frame's own copy), coverage records and mask."""
         plan, cam = view.plan, view.camera
         h, w = cam.height_px, cam.width_px
         if plan.mode == "full":
             image = radiance[slot][: h, : w].copy()
         else:
-            sky = view.sky(frame)
-            image = sky.copy() if view.static else sky  # a turning camera's sky is not reused
+            image = background
             for ti in range(plan.tiles_per_frame):
                 if self.boxes[view.which][frame][ti] is None:
                     continue

@@ -198,3 +198,26 @@ def test_layout_from_a_superset_scene_keeps_shared_pixels_and_refuses_a_foreign_
     reversed_targets = scenario.model_copy(update={"targets": scenario.targets[::-1]})
     with pytest.raises(ValueError, match="layout timeline differs"):
         SequenceRenderer(own, cameras=("rgb",), labels=False, layout=build_timeline(reversed_targets, 3, 20))
+
+
+@pytest.mark.parametrize("name", ["low_elevation_haze", "pan_tilt_horizon"])   # turning camera: sky; sky and terrain
+def test_a_turning_cameras_backgrounds_of_a_batch_equal_each_frame_evaluated_alone(name):
+    scenario = shrink(load_scenario(name), 96, 80)
+    renderer = SequenceRenderer(build_timeline(scenario, 2, 6), cameras=("rgb",), labels=False)
+    view = renderer.views["rgb"]
+    assert not view.static and view.plan.mode == "roi"
+    together = view.backgrounds(list(range(6)))             # one launch
+    for frame, image in enumerate(together):
+        alone = view._background([frame], 0, 0, view.camera.height_px, view.camera.width_px)[0]
+        assert image.tobytes() == alone.tobytes()
+    renderer.close()
+
+
+def test_the_animated_asset_is_shared_between_sequences_and_read_only(swarm):
+    from simulator.render.geometry import TrackGeometry
+
+    a, b = TrackGeometry(swarm.targets[0]), TrackGeometry(swarm.targets[0])
+    assert a.asset is b.asset
+    faces = a.faces(a.roles[0])
+    with pytest.raises(ValueError):
+        faces[0, 0] = 0
