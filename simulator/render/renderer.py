@@ -980,6 +980,8 @@ class SequenceRenderer:
         if plan.mode == "full":
             image = radiance[slot][: h, : w].copy()
         else:
+            if background is None:
+                raise ValueError("ROI frames are composited over their background: none given")
             image = background
             for ti in range(plan.tiles_per_frame):
                 if self.boxes[view.which][frame][ti] is None:
