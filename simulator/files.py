@@ -387,6 +387,7 @@ class DatasetLock:
         self._fd: int | None = None
         self._lease: dict | None = None
         self._stop: threading.Event | None = None
+        self._renewer: threading.Thread | None = None
 
     def acquire(self) -> "DatasetLock":
         import fcntl
@@ -422,7 +423,9 @@ class DatasetLock:
         os.fsync(fd)
         self._fd = fd
         self._stop = threading.Event()
-        threading.Thread(target=self._renew, args=(self._stop,), name="evids-lease-renewal", daemon=True).start()
+        self._renewer = threading.Thread(target=self._renew, args=(self._stop,), name="evids-lease-renewal",
+                                         daemon=True)
+        self._renewer.start()
         return self
 
     # -- the lease -----------------------------------------------------------------------------
@@ -519,6 +522,12 @@ class DatasetLock:
         if self._stop is not None:
             self._stop.set()
             self._stop = None
+        if self._renewer is not None:
+            # a renewal caught between its truncate and its write would leave an empty lease that the
+            # next run reads as fresh (and, with the process gone, nobody removes): let it finish first
+            if self._renewer is not threading.current_thread():
+                self._renewer.join(timeout=30.0)
+            self._renewer = None
         if self._lease is not None:
             current = _read_json(self.lease_path)
             if current is None or current.get("run_id") == self._lease["run_id"]:

@@ -95,6 +95,32 @@ def test_the_lease_is_renewed_while_held_and_a_lost_lease_is_left_to_its_new_own
     assert _lease(folder)["run_id"] == "other"
 
 
+def test_release_waits_for_a_renewal_caught_half_way(tmp_path, monkeypatch):
+    """A renewal between its truncate and its write when the run releases must not leave a lease behind
+    (seen in CI under load: the next run found an empty, fresh lease and refused the folder)."""
+    import threading
+
+    folder = tmp_path / "ds"
+    in_renewal = threading.Event()
+
+    def slow_renew(self):                       # DatasetLock.renew's in-place rewrite, slowed down
+        self._lease = {**self._lease, "expires_unix": round(time.time() + self.lease_s, 3)}
+        with open(self.lease_path, "r+") as f:
+            f.truncate(0)
+            f.flush()
+            in_renewal.set()
+            time.sleep(0.5)                     # the release arrives while the lease is empty
+            f.write(json.dumps(self._lease, sort_keys=True) + "\n")
+        return True
+
+    monkeypatch.setattr(DatasetLock, "renew", slow_renew)
+    lock = DatasetLock(folder, lease_s=0.3).acquire()
+    assert in_renewal.wait(10)
+    lock.release()
+    assert not (folder / LEASE_FILE).exists()
+    DatasetLock(folder, lease_s=0.3).acquire().release()   # the next run gets the folder
+
+
 def test_the_lease_is_bookkeeping_not_content(tmp_path):
     folder = tmp_path / "ds"
     with DatasetLock(folder):
