@@ -137,6 +137,8 @@ class Randomisation(_Model):
     tracking_error_fov_fraction: Range | None = Field(default=None, description="replaces tracking_error_deg: "
                                                       "rms pointing error as a fraction of the RGB horizontal FOV")
     tracking_loss_rate_hz: Range | None = None
+    tracking_error_period_s: Range | None = Field(default=None, description=(
+        "correlation time of the pointing error (scenes.schema.Tracking.error_period_s; null: its default)"))
     cloud_cover: Range | None = Field(default=None, description="sky.clouds.coverage, 0-1")
     terrain: Terrain | None = Field(default=None, description="the ground and horizon clutter of every sequence")
 
@@ -163,7 +165,7 @@ class Randomisation(_Model):
             if b.range_m.min <= 0:
                 raise ValueError(f"distance_bins range_m must be > 0, got [{b.range_m.min}, {b.range_m.max}]")
         for name in ("hfov_deg", "tracking_lag_s", "tracking_error_deg", "tracking_loss_rate_hz",
-                     "elevation_fov_fraction",
+                     "tracking_error_period_s", "elevation_fov_fraction",
                      "tracking_error_fov_fraction"):
             value = getattr(self, name)
             if value is not None and (value.min < 0 or (name == "hfov_deg" and not 0 < value.min <= value.max < 170)):
@@ -589,6 +591,8 @@ def _camera_mode(r: Randomisation, rig: dict, target: dict, cam_pos: np.ndarray,
         error = round(pick(r.tracking_error_fov_fraction, err, 0.0) * float(rig["rgb"]["hfov_deg"]), 4)
     rig["tracking"] = {"lag_s": pick(r.tracking_lag_s, lag, 0.0), "error_deg": error,
                        "loss_rate_hz": pick(r.tracking_loss_rate_hz, loss, 0.0)}
+    if r.tracking_error_period_s is not None:       # one more draw, only where the field is set
+        rig["tracking"]["error_period_s"] = pick(r.tracking_error_period_s, float(rng.random()), 1.5)
 
 
 def _trajectory_anchor(target: Target) -> tuple[float, float, float]:

@@ -87,3 +87,32 @@ def test_tracking_error_scales_with_the_field_of_view():
     for i in range(3):
         rig = randomised_scenario(cfg, 4, i)[1].camera_rig
         assert rig.tracking.error_deg == pytest.approx(0.1 * rig.rgb.hfov_deg, abs=1e-3) and rig.tracking.lag_s == 0.2
+
+
+def test_tracking_error_period_is_drawn_only_where_it_is_set():
+    base = _cfg(tracking_error_fov_fraction=[0.1, 0.2], tracking_lag_s=[0.2, 0.4])
+    slow = _cfg(tracking_error_fov_fraction=[0.1, 0.2], tracking_lag_s=[0.2, 0.4], tracking_error_period_s=[30, 60])
+    for i in range(4):
+        a, b = randomised_scenario(base, 4, i)[1], randomised_scenario(slow, 4, i)[1]
+        assert a.camera_rig.tracking.error_period_s == 1.5            # the schema's default
+        assert 30.0 <= b.camera_rig.tracking.error_period_s <= 60.0
+        # the same offsets and lag: the period is one extra draw after the others
+        assert (b.camera_rig.tracking.error_deg, b.camera_rig.tracking.lag_s) == \
+            (a.camera_rig.tracking.error_deg, a.camera_rig.tracking.lag_s)
+    with pytest.raises(UserInputError, match="tracking_error_period_s"):
+        _cfg(tracking_error_period_s=[-1, 2])
+
+
+def test_a_slow_pointing_error_keeps_the_camera_still_between_frames():
+    """Pan-tilt head of the timeline: with a 30 s error correlation time the per-frame pointing step is a
+    small fraction of the 1.5 s default's (the real platform is nearly still between frames)."""
+    from scenes.schema import Tracking
+    from simulator.physics.timeline import pan_tilt_pointing
+
+    aim = np.tile([0.0, 100.0, 10.0], (60, 1))
+    steps = {}
+    for period in (1.5, 30.0):
+        fwd, _ = pan_tilt_pointing(aim, np.zeros((60, 3)), Tracking(lag_s=0.3, error_deg=3.0, error_period_s=period),
+                                   30.0, np.random.default_rng(0), np.random.default_rng(1))
+        steps[period] = float(np.median(np.degrees(np.arccos(np.clip(np.sum(fwd[1:] * fwd[:-1], 1), -1, 1)))))
+    assert steps[30.0] < 0.3 * steps[1.5]
