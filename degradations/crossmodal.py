@@ -18,6 +18,8 @@ class _Cross(Degradation):
     """Base: the modality is chosen per instance with the ``stream`` parameter."""
     modality = "rgb"
     streams: tuple[str, ...] = MODALITIES
+    #: the stream a spec entry without a ``stream`` (field or parameter) applies it to
+    spec_stream: str = "rgb"
     uint8_native = True  # index/warp operations work on uint8 frames directly
 
     def __init__(self, severity=None, *, temporal=None, **params):
@@ -139,6 +141,7 @@ class Misalignment(_Cross):
     (xywh, any leading shape) and masks are transformed with the same matrix."""
     name = "crossmodal.misalignment"
     streams = ("rgb", "thermal")
+    spec_stream = "thermal"      # the thermal camera is the one misregistered against the RGB reference
     table = {"shift_px": (2.0, 4.0, 8.0, 12.0, 20.0), "rot_deg": (0.5, 1.0, 2.0, 3.0, 5.0),
              "scale_delta": (0.01, 0.02, 0.04, 0.06, 0.1)}
     identity = {"shift_px": 0.0, "rot_deg": 0.0, "scale_delta": 0.0}

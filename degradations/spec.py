@@ -32,13 +32,20 @@ Stream = Literal["rgb", "thermal", "audio", "rf_iq", "rf_spec"]
 
 
 def default_stream(name: str, params: dict | None = None) -> str:
-    """Stream a degradation acts on, from its name prefix (crossmodal: params['stream'])."""
-    prefix = name.split(".")[0]
-    if prefix == "crossmodal":
-        return (params or {}).get("stream", "thermal" if name == "crossmodal.misalignment" else "rgb")
-    if prefix == "rf":
-        return "rf_spec" if name.startswith("rf.spec_") else "rf_iq"
-    return {"video": "rgb", "thermal": "thermal", "audio": "audio"}.get(prefix, prefix)
+    """Stream a registered degradation acts on: its own ``modality``; a cross-modal one (a
+    ``spec_stream`` attribute) acts on ``params['stream']``, else on its ``spec_stream``."""
+    cls = REGISTRY.get(name)
+    if cls is None:
+        raise DegradationError(f"unknown degradation {name!r}")
+    spec_stream = getattr(cls, "spec_stream", None)
+    if spec_stream is not None:
+        return str((params or {}).get("stream", spec_stream))
+    return str(cls.modality)
+
+
+def _stream_is_a_parameter(name: str) -> bool:
+    """True for a cross-modal degradation: the stream it acts on is chosen per entry."""
+    return getattr(REGISTRY[name], "spec_stream", None) is not None
 
 
 class _Model(BaseModel):
@@ -59,7 +66,7 @@ class DegradationEntry(_Model):
         if self.name not in REGISTRY:
             raise ValueError(f"unknown degradation {self.name!r}")
         params = dict(self.params)
-        if self.name.startswith("crossmodal."):
+        if _stream_is_a_parameter(self.name):
             if self.stream is not None:
                 params["stream"] = self.stream
         elif self.stream is not None and self.stream != default_stream(self.name):
@@ -115,7 +122,7 @@ class DegradationSpec(_Model):
                 "temporal": d.temporal, "schedule": d.schedule, "program": None} for d in self.degradations]
         for p in self.programs:
             for e in conflict_program(p.name, p.resolved_schedule(), p.cause):
-                params = {"stream": e["stream"]} if e["name"].startswith("crossmodal.") else {}
+                params = {"stream": e["stream"]} if _stream_is_a_parameter(e["name"]) else {}
                 out.append({**e, "severity": None, "params": params, "temporal": None})
         return out
 

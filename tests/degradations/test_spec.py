@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from degradations.errors import SpecError
+from degradations.errors import DegradationError, SpecError
 from degradations.spec import apply_spec, load_spec, parse_spec
 from tests.degradations.conftest import target_mask
 
@@ -155,3 +155,24 @@ def test_an_entry_after_a_retime_does_not_retime_the_shown_index_again():
     shown = alone["meta"]["rgb_frame_index_shown"]
     assert shown != list(range(T))
     assert both["meta"]["rgb_frame_index_shown"] == shown
+
+
+def test_the_default_stream_is_the_degradations_own_modality():
+    """Read off each registered degradation (its modality; cross-modal ones their spec_stream or the
+    entry's stream parameter), not off its name: the hand table is the prefix rule it replaced."""
+    from degradations.registry import REGISTRY
+    from degradations.spec import default_stream
+
+    def by_prefix(name):
+        prefix = name.split(".")[0]
+        if prefix == "crossmodal":
+            return "thermal" if name == "crossmodal.misalignment" else "rgb"
+        if prefix == "rf":
+            return "rf_spec" if name.startswith("rf.spec_") else "rf_iq"
+        return {"video": "rgb", "thermal": "thermal", "audio": "audio"}[prefix]
+
+    assert len(REGISTRY) > 40
+    assert {n: default_stream(n) for n in REGISTRY} == {n: by_prefix(n) for n in REGISTRY}
+    assert default_stream("crossmodal.dropout", {"stream": "audio"}) == "audio"
+    with pytest.raises(DegradationError, match="unknown degradation"):
+        default_stream("video.nothing_of_the_kind")
