@@ -24,6 +24,7 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path[:] = [p for p in sys.path if os.path.abspath(p or ".") != _HERE]
 sys.path.insert(0, os.path.dirname(_HERE))
 import degradations  # noqa: E402
+from degradations.spec import stream_is_a_parameter  # noqa: E402
 
 H, W = 512, 640
 SR = 44100
@@ -83,7 +84,7 @@ def main() -> None:
     print(f"{'degradation':34s} {'items/s':>10s}")
     for name in sorted(degradations.REGISTRY):
         stream = stream_of(name)
-        kw = {"stream": stream} if name.startswith("crossmodal.") else {}
+        kw = {"stream": stream} if stream_is_a_parameter(name) else {}
         x, meta = data[stream]
         if name in ("video.frame_drop", "video.frame_freeze", "crossmodal.frame_rate_mismatch",
                     "crossmodal.desync"):

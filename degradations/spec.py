@@ -43,7 +43,7 @@ def default_stream(name: str, params: dict | None = None) -> str:
     return str(cls.modality)
 
 
-def _stream_is_a_parameter(name: str) -> bool:
+def stream_is_a_parameter(name: str) -> bool:
     """True for a cross-modal degradation: the stream it acts on is chosen per entry."""
     return getattr(REGISTRY[name], "spec_stream", None) is not None
 
@@ -66,7 +66,7 @@ class DegradationEntry(_Model):
         if self.name not in REGISTRY:
             raise ValueError(f"unknown degradation {self.name!r}")
         params = dict(self.params)
-        if _stream_is_a_parameter(self.name):
+        if stream_is_a_parameter(self.name):
             if self.stream is not None:
                 params["stream"] = self.stream
         elif self.stream is not None and self.stream != default_stream(self.name):
@@ -122,7 +122,7 @@ class DegradationSpec(_Model):
                 "temporal": d.temporal, "schedule": d.schedule, "program": None} for d in self.degradations]
         for p in self.programs:
             for e in conflict_program(p.name, p.resolved_schedule(), p.cause):
-                params = {"stream": e["stream"]} if _stream_is_a_parameter(e["name"]) else {}
+                params = {"stream": e["stream"]} if stream_is_a_parameter(e["name"]) else {}
                 out.append({**e, "severity": None, "params": params, "temporal": None})
         return out
 

@@ -16,6 +16,7 @@ from scipy import signal  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import degradations  # noqa: E402
+from degradations.spec import stream_is_a_parameter  # noqa: E402
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "images")
 H, W = 128, 160
@@ -53,7 +54,7 @@ def grid(names, x, show, meta, fname, ncols=5, **kw):
     show(axes[0], x)
     axes[0].set_title("original", fontsize=8)
     for ax, name in zip(axes[1:], names):
-        extra = {"stream": kw["stream"]} if name.startswith("crossmodal.") and "stream" in kw else {}
+        extra = {"stream": kw["stream"]} if stream_is_a_parameter(name) and "stream" in kw else {}
         y = degradations.apply(name, x, seed=0, severity=3, meta=meta, **extra)
         show(ax, y)
         ax.set_title(name, fontsize=8)

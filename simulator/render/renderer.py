@@ -430,7 +430,8 @@ class _View:
     @property
     def _terrain_mesh(self) -> TerrainMesh:
         """The terrain this view sees; used only with terrain (its keys have target index -1)."""
-        assert self.terrain is not None
+        if self.terrain is None:
+            raise RuntimeError("terrain mesh requested for a scene without terrain")
         return self.terrain
 
     def _floats(self, values: np.ndarray):
@@ -914,7 +915,8 @@ class SequenceRenderer:
         from simulator.physics.terrain_thermal import surface_offset_k
 
         mesh, scenario = self.terrain, self.timeline.scenario
-        assert mesh is not None and scenario.terrain is not None, "terrain_emission needs a scene with terrain"
+        if mesh is None or scenario.terrain is None:
+            raise RuntimeError("terrain_emission needs a scene with terrain")
         rel = mesh.vertices - self.timeline.cameras[which].origin_m[0]
         dist = np.maximum(np.linalg.norm(rel, axis=1), 1e-3)
         if which == "rgb":
