@@ -5,8 +5,9 @@ Thin wrappers over simulator.dataset.generate (native datasets, exporters, verif
 """
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
-from typing import Optional
+from typing import Iterator, Optional
 
 import typer
 
@@ -52,15 +53,13 @@ def generate(
     if fmt.strip() == "trident":
         from simulator.dataset.trident import generate_trident
 
-        if sequences is not None or frames is not None or workers != 1 or executor != "local" or overwrite:
-            raise UserInputError("--format trident takes --clips, --seed and --quiet only (not --sequences, --frames, "
-                                 "--workers, --executor or --overwrite)")
-
-        from simulator.files import check_output
-
-        check_output(out, inputs=[Path(config)] if Path(config).is_file() else [])
+        if sequences is not None or frames is not None or executor != "local":
+            raise UserInputError("--format trident takes --clips, --seed, --workers, --overwrite and --quiet (not "
+                                 "--sequences, --frames or --executor)")
         try:
-            path = generate_trident(config, out, seed, n_clips=clips, progress=not quiet)
+            with _generation_errors("clips"):
+                path = generate_trident(config, out, seed, n_clips=clips, progress=not quiet, workers=workers,
+                                        overwrite=overwrite)
         except ValueError as exc:
             if isinstance(exc, UserInputError):
                 raise
@@ -73,23 +72,32 @@ def generate(
         from harness.cli import require_module
 
         require_module("ray", "--executor ray", "pip install -e '.[ray]' (bash run.sh installs it)")
-    from simulator.dataset.generate import GenerationFailed, generate_dataset
+    from simulator.dataset.generate import generate_dataset
 
-    try:
+    with _generation_errors("sequences"):
         result = generate_dataset(config, out, seed, sequences=sequences, frames=frames, workers=workers,
                                   executor=executor, ray_address=ray_address, formats=_formats(fmt),
                                   overwrite=overwrite, progress=not quiet)
-    except GenerationFailed as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(1) from None
-    except KeyboardInterrupt:
-        typer.echo("interrupted: finished sequences are kept; run the same command again to resume", err=True)
-        raise typer.Exit(130) from None
     for note in result.notes:
         typer.echo(f"note: {note}", err=True)
     typer.echo(f"native: {result.out_dir} ({len(result.rendered)} rendered, {len(result.skipped)} already complete)")
     for kind, path in result.exports.items():
         typer.echo(f"{kind}: {path}")
+
+
+@contextlib.contextmanager
+def _generation_errors(units: str) -> Iterator[None]:
+    """Exit 1 naming the failed units (the others are kept), 130 on Ctrl-C (finished units are kept)."""
+    from simulator.dataset.driver import GenerationFailed
+
+    try:
+        yield
+    except GenerationFailed as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(1) from None
+    except KeyboardInterrupt:
+        typer.echo(f"interrupted: finished {units} are kept; run the same command again to resume", err=True)
+        raise typer.Exit(130) from None
 
 
 def export(
@@ -156,9 +164,10 @@ def export(
         typer.echo(f"{f}: {path}")
 
 
-def verify(dataset: Path = typer.Argument(..., help="A native dataset folder.")) -> None:
-    """Re-hash every sequence; list missing and corrupt ones (exit 1 if any). Re-running the same
-    `evids generate` command regenerates exactly those."""
+def verify(dataset: Path = typer.Argument(..., help="A dataset folder `evids generate` wrote (native or trident).")
+           ) -> None:
+    """Re-hash every sequence (or clip); list missing and corrupt ones (exit 1 if any). Re-running the
+    same `evids generate` command regenerates exactly those."""
     from simulator.dataset.generate import verify_dataset
 
     report = verify_dataset(dataset, progress=True)
@@ -170,7 +179,7 @@ def verify(dataset: Path = typer.Argument(..., help="A native dataset folder."))
         typer.echo("incomplete: the generation run has not finished (manifest has no hashes yet)")
     if not report.ok:
         raise typer.Exit(1)
-    typer.echo(f"ok: {report.checked} sequences intact")
+    typer.echo(f"ok: {report.checked} {report.noun}s intact")
 
 
 def fixture(

@@ -85,8 +85,10 @@ def ensure_dataset(cfg: DatasetConfig, run_dir: Path, progress: bool = True) -> 
             raise UserInputError(f"dataset.path: {str(root)!r} is not a folder")
         return root, False
     root = run_dir / "data"
-    if (root / "manifest.json").is_file():
-        return root, True
+    from simulator.dataset.driver import read_old_manifest
+
+    if read_old_manifest(root).get("complete", True) is True and (root / "manifest.json").is_file():
+        return root, True  # complete (or written before manifests said so); an unfinished one is resumed
     from simulator.dataset.trident import generate_trident, load_trident_config
 
     gen = load_trident_config(cfg.generate)

@@ -6,9 +6,10 @@ Layout (docs/DATASETS.md)::
     DIR/sequences/seq000001/      native layout (docs/NATIVE_FORMAT.md), renamed into place whole
     DIR/<format>/                 optional exports (antiuav, antiuav_rgbt, antiuav2021, mot, coco, webdataset, zarr)
 
-The manifest is written first with ``"complete": false`` and no hashes (so a resumed run can check
-it is the same dataset), and rewritten at the end with the hashes; it holds no timestamps, so an
-interrupted-and-resumed run ends byte-identical to an uninterrupted one.
+The output rules, the lock, resume and the manifest (written first with ``"complete": false``,
+rewritten as each sequence finishes, last with ``"complete": true``) belong to the driver shared
+with the TRIDENT kind (:mod:`simulator.dataset.driver`); this module is the native kind: its plan,
+its per-sequence render task, and verify/export of a native dataset.
 """
 from __future__ import annotations
 
@@ -18,9 +19,9 @@ import os
 import shutil
 import time
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Iterator
 
 from scenes.errors import UserInputError, short_repr
 from simulator.dataset.config import (
@@ -31,48 +32,30 @@ from simulator.dataset.config import (
     sequence_seed,
     split_assignment,
 )
+from simulator.dataset.driver import (
+    MANIFEST,
+    GenerationResult,
+    Unit,
+    VerifyReport,
+    canonical_sha256,
+    clean_stale,
+    drive,
+)
 from simulator.files import (
     HASH_FILE,
-    LEASE_FILE,
-    LOCK_FILE,
     DatasetLock,
     check_output,
     check_plain_name,
     inside,
     verify_hashes,
-    write_atomic,
 )
 from simulator.jobs import JobError, Start, iter_jobs, threads_per_worker
 
-MANIFEST = "manifest.json"
 SEQUENCES_DIR = "sequences"
 DATASET_FORMAT = "evids-native-dataset"
 EXPORT_FORMATS = ("antiuav", "antiuav_rgbt", "antiuav2021", "mot", "coco", "webdataset", "zarr")
 TRIDENT_EXPORT_FORMATS = ("trident", "webdataset")     # formats a TRIDENT clip dataset exports to
 EXECUTORS = ("local", "ray")
-
-
-class GenerationFailed(RuntimeError):
-    """Some sequences failed; the others are complete and intact. ``failures`` maps name -> message."""
-
-    def __init__(self, failures: dict[str, str]):
-        self.failures = dict(failures)
-        lines = [f"{len(failures)} sequence(s) failed (the others are complete; re-run to retry):"]
-        lines += [f"  {name}: {msg}" for name, msg in sorted(failures.items())]
-        super().__init__("\n".join(lines))
-
-
-@dataclass
-class GenerationResult:
-    out_dir: Path
-    rendered: list[str] = field(default_factory=list)
-    skipped: list[str] = field(default_factory=list)
-    exports: dict[str, Path] = field(default_factory=dict)
-    notes: list[str] = field(default_factory=list)
-
-
-def _canonical(data: Any) -> str:
-    return json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
 
 
 def plan_dataset(config: GenerationConfig, seed: int, base_dir: Path | None = None) -> list[dict[str, Any]]:
@@ -89,8 +72,7 @@ def plan_dataset(config: GenerationConfig, seed: int, base_dir: Path | None = No
 
 def dataset_identity(config: GenerationConfig, seed: int, tasks: list[dict[str, Any]]) -> str:
     """sha256 over the resolved config, seed and every sequence's scenario/seed/split."""
-    return hashlib.sha256(_canonical({"config": config.model_dump(mode="json"), "seed": int(seed),
-                                      "tasks": tasks}).encode()).hexdigest()
+    return canonical_sha256({"config": config.model_dump(mode="json"), "seed": int(seed), "tasks": tasks})
 
 
 def sequence_hash(sequence_dir: Path) -> str:
@@ -99,25 +81,20 @@ def sequence_hash(sequence_dir: Path) -> str:
 
 
 def _manifest(config: GenerationConfig, seed: int, tasks: list[dict[str, Any]], identity: str,
-              hashes: dict[str, str] | None) -> dict[str, Any]:
+              hashes: dict[str, str], complete: bool) -> dict[str, Any]:
     from simulator.files import package_versions
 
     sequences = []
     for t in tasks:
         sequences.append({"name": t["name"], "index": t["index"], "source": t["source"], "seed": t["seed"],
                           "split": t["split"], "n_frames": t["n_frames"],
-                          "content_sha256": None if hashes is None else hashes[t["name"]]})
+                          "content_sha256": hashes.get(t["name"])})
     return {
-        "format": DATASET_FORMAT, "format_version": 1, "dataset_id": identity, "complete": hashes is not None,
+        "format": DATASET_FORMAT, "format_version": 1, "dataset_id": identity, "complete": complete,
         "config": config.model_dump(mode="json"), "seed": int(seed), "versions": package_versions(),
         "splits": {s: [t["name"] for t in tasks if t["split"] == s] for s in ("train", "val", "test")},
         "sequences": sequences,
     }
-
-
-def write_manifest(out_dir: Path, manifest: dict[str, Any]) -> None:
-    """Atomic: write a temporary file, then rename over manifest.json."""
-    write_atomic(out_dir / MANIFEST, json.dumps(manifest, sort_keys=True, indent=1, allow_nan=False) + "\n")
 
 
 def load_manifest(dataset_dir: Path) -> dict[str, Any]:
@@ -158,19 +135,6 @@ def _sequence_ok(seq_dir: Path, task: dict[str, Any], recorded_hash: str | None)
     if meta.get("seed") != task["seed"] or meta.get("n_frames") != task["n_frames"]:
         return False
     return recorded_hash is None or sequence_hash(seq_dir) == recorded_hash
-
-
-def _clean_stale(folder: Path) -> None:
-    """Remove temporary folders/files of killed runs (hidden .tmp-*/.old-*/.native-*). Called only by
-    the holder of the dataset lock: every other writer of this dataset is then dead."""
-    if not folder.is_dir():
-        return
-    for child in folder.iterdir():
-        if child.name.startswith((".tmp-", ".old-", ".native-", f".{MANIFEST}.tmp-")):
-            if child.is_dir():
-                shutil.rmtree(child, ignore_errors=True)
-            else:
-                child.unlink(missing_ok=True)
 
 
 # --------------------------------------------------------------------------------------------
@@ -224,10 +188,10 @@ def _peak_rss_mb() -> float:
     return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
 
 
-def run_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, *, workers: int = 1, executor: str = "local",
-              ray_address: str | None = None, progress: bool = True, label: str = "generate",
-              force_pool: bool = False) -> dict[str, dict[str, Any]]:
-    """Run render tasks on the chosen executor with a driver-side progress bar; results by name.
+def iter_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, *, workers: int = 1, executor: str = "local",
+               ray_address: str | None = None, progress: bool = True, label: str = "generate",
+               force_pool: bool = False) -> Iterator[dict[str, Any]]:
+    """Run render tasks on the chosen executor with a driver-side progress bar; each result as it finishes.
 
     Local with one worker renders in-process (Dr.Jit uses every core); ``force_pool`` uses a
     one-process pool with 1 Dr.Jit thread per worker instead (for scaling benchmarks)."""
@@ -241,14 +205,17 @@ def run_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, *, workers: int 
     else:
         start, threads = "forkserver", 1 if force_pool else threads_per_worker(workers)
     calls = [(t, str(sequences_dir), threads) for t in tasks]
-    results: dict[str, dict[str, Any]] = {}
     for i, result in iter_jobs(render_task, calls, workers=workers, start=start, on_error="collect",
                                progress=label if progress else None, ray_address=ray_address):
         if isinstance(result, JobError):  # render_task never raises: its worker died, or Ray failed
             why = f"Ray task failed: {result.message}" if start == "ray" else f"worker process died ({result.error})"
             result = {"name": tasks[i]["name"], "error": why}
-        results[result["name"]] = result
-    return results
+        yield result
+
+
+def run_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, **kwargs: Any) -> dict[str, dict[str, Any]]:
+    """:func:`iter_tasks` collected: results by sequence name."""
+    return {r["name"]: r for r in iter_tasks(tasks, sequences_dir, **kwargs)}
 
 
 # --------------------------------------------------------------------------------------------
@@ -288,102 +255,78 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
 
         config = validate_mapping(GenerationConfig, {**config.model_dump(mode="json"), **updates}, "command line")
     tasks = plan_dataset(config, seed, base_dir)
-    identity = dataset_identity(config, seed, tasks)
-
-    out = Path(out_dir)
     config_file = ([Path(config_or_name)] if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file()
                    else [])
-    if out.is_dir() and not (out / LOCK_FILE).exists() and any(out.iterdir()) and not (out / MANIFEST).is_file():
-        raise UserInputError(f"output folder {str(out)!r} is not empty and holds no evids dataset; choose another "
-                             "--out")
-    check_output(out, inputs=config_file, overwrite=overwrite, allow_resume=True)
-    lock = DatasetLock(out, "generate").acquire()
-    try:
-        return _generate_locked(out, config, seed, tasks, identity, lock, workers=workers, executor=executor,
-                                ray_address=ray_address, formats=formats, overwrite=overwrite, progress=progress)
-    finally:
-        lock.release()
+    kind = NativeDataset(config, seed, tasks, executor=executor, ray_address=ray_address)
+
+    def export(result: GenerationResult) -> None:  # under the dataset lock, after the final manifest
+        for fmt in formats:
+            if fmt != "native":
+                result.exports[fmt] = _export_locked(result.out_dir, fmt, result.out_dir / fmt, overwrite=True,
+                                                     progress=progress)
+
+    return drive(kind, out_dir, inputs=config_file, overwrite=overwrite, workers=workers, progress=progress,
+                 finish=export)
 
 
-def _generate_locked(out: Path, config: GenerationConfig, seed: int, tasks: list[dict[str, Any]], identity: str,
-                     lock: DatasetLock, *, workers: int, executor: str, ray_address: str | None,
-                     formats: tuple[str, ...], overwrite: bool, progress: bool) -> GenerationResult:
-    """The body of :func:`generate_dataset`, run while holding the dataset lock."""
-    notes = []
-    if lock.stale:
-        notes.append(f"removed a stale lock left by a dead run (pid {lock.stale.get('pid', '?')} on host "
-                     f"{lock.stale.get('host', '?')}); its unfinished work is redone")
-    recorded: dict[str, str] = {}
-    if (out / MANIFEST).is_file():
-        try:
-            old = json.loads((out / MANIFEST).read_text())
-        except json.JSONDecodeError:
-            old = {}
-        if not isinstance(old, dict):
-            old = {}
-        if old.get("dataset_id") != identity:
-            if not overwrite:
-                raise UserInputError(
-                    f"output folder {str(out)!r} holds a different dataset (manifest {MANIFEST} was made from another "
-                    "config, seed, --sequences or --frames); use a new --out, or --overwrite to replace it")
-            for child in out.iterdir():  # everything but our own lock
-                if child.name not in (LOCK_FILE, LEASE_FILE):
-                    shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
-        else:
-            entries = old.get("sequences", [])
-            recorded = {s["name"]: s["content_sha256"] for s in entries if isinstance(s, dict)
-                        and s.get("content_sha256")}
-    out.mkdir(parents=True, exist_ok=True)
-    seq_root = out / SEQUENCES_DIR
-    seq_root.mkdir(exist_ok=True)
-    _clean_stale(out)
-    _clean_stale(seq_root)
-    write_manifest(out, _manifest(config, seed, tasks, identity, None))
+@dataclass
+class NativeDataset:
+    """The native dataset kind (simulator.dataset.driver): one unit per sequence folder under sequences/."""
 
-    wanted = {t["name"] for t in tasks}
-    for child in seq_root.iterdir():
-        if child.is_symlink():  # never followed: the link goes, its target stays
-            child.unlink()
-        elif child.is_dir() and child.name not in wanted:
-            shutil.rmtree(child)
-    todo = [t for t in tasks if not _sequence_ok(seq_root / t["name"], t, recorded.get(t["name"]))]
-    result = GenerationResult(out_dir=out, skipped=[t["name"] for t in tasks if t not in todo], notes=notes)
-    results = run_tasks(todo, seq_root, workers=workers, executor=executor, ray_address=ray_address,
-                        progress=progress, label=f"generate {config.name}")
-    failures = {name: r["error"] for name, r in results.items() if "error" in r}
-    missing = [t["name"] for t in todo if t["name"] not in results]
-    failures.update({name: "no result from the executor" for name in missing})
-    if failures:
-        raise GenerationFailed(failures)
-    result.rendered = [t["name"] for t in todo]
-    result.notes += [f"{name}: {note}" for name, r in sorted(results.items()) for note in r.get("notes", [])]
-    hashes = {t["name"]: sequence_hash(seq_root / t["name"]) for t in tasks}
-    write_manifest(out, _manifest(config, seed, tasks, identity, hashes))
-    for fmt in formats:
-        if fmt != "native":
-            result.exports[fmt] = _export_locked(out, fmt, out / fmt, overwrite=True, progress=progress)
-    return result
+    config: GenerationConfig
+    seed: int
+    tasks: list[dict[str, Any]]
+    executor: str = "local"
+    ray_address: str | None = None
+    noun: str = "sequence"
+
+    @property
+    def label(self) -> str:
+        return f"generate {self.config.name}"
+
+    def identity(self) -> str:
+        return dataset_identity(self.config, self.seed, self.tasks)
+
+    def units(self) -> list[Unit]:
+        return [Unit(t["name"], t) for t in self.tasks]
+
+    def prepare(self, out: Path) -> None:
+        seq_root = out / SEQUENCES_DIR
+        seq_root.mkdir(exist_ok=True)
+        clean_stale(seq_root)
+        wanted = {t["name"] for t in self.tasks}
+        for child in seq_root.iterdir():
+            if child.is_symlink():  # never followed: the link goes, its target stays
+                child.unlink()
+            elif child.is_dir() and child.name not in wanted:
+                shutil.rmtree(child)
+
+    def unit_ok(self, out: Path, unit: Unit, recorded_hash: str | None) -> bool:
+        return _sequence_ok(out / SEQUENCES_DIR / unit.name, unit.payload, recorded_hash)
+
+    def unit_hash(self, out: Path, unit: Unit) -> str:
+        return sequence_hash(out / SEQUENCES_DIR / unit.name)
+
+    def run(self, out: Path, todo: list[Unit], *, workers: int, progress: bool) -> Iterator[dict[str, Any]]:
+        return iter_tasks([u.payload for u in todo], out / SEQUENCES_DIR, workers=workers, executor=self.executor,
+                          ray_address=self.ray_address, progress=progress, label=self.label)
+
+    def manifest(self, units: list[Unit], hashes: dict[str, str], complete: bool, out: Path) -> dict[str, Any]:
+        return _manifest(self.config, self.seed, self.tasks, self.identity(), hashes, complete)
 
 
 # --------------------------------------------------------------------------------------------
 # Verify and export
 # --------------------------------------------------------------------------------------------
 
-@dataclass
-class VerifyReport:
-    checked: int = 0
-    missing: list[str] = field(default_factory=list)
-    corrupt: dict[str, list[str]] = field(default_factory=dict)
-    incomplete: bool = False
-
-    @property
-    def ok(self) -> bool:
-        return not self.missing and not self.corrupt and not self.incomplete
-
-
 def verify_dataset(dataset_dir: str | Path, *, progress: bool = False) -> VerifyReport:
-    """Re-hash every sequence against its files.sha256 and the manifest's content hash."""
+    """Re-hash every sequence against its files.sha256 and the manifest's content hash (a TRIDENT clip
+    dataset: every clip against the manifest, simulator.dataset.trident.verify_trident)."""
     root = Path(dataset_dir)
+    if _is_trident_dataset(root):
+        from simulator.dataset.trident import verify_trident
+
+        return verify_trident(root)
     manifest = load_manifest(root)
     complete = manifest.get("complete", False) is True
     report = VerifyReport(incomplete=not complete)

@@ -4,8 +4,9 @@ Per clip: 280 video frames at 28 fps (112x112), a 44.1 kHz mono WAV, one RF I/Q 
 RF spectrogram per segment, an MFCC 1x40x40 per audio segment, and per-segment ground truth
 (class and per-modality observability). :func:`generate_trident` writes a dataset in the TRIDENT
 folder layout (``audio/``, ``video/``, ``rf/`` roots, each ``{Drone,Background}/<scenario>/``),
-plus ``rf_iq/`` (complex64 I/Q), ``labels/`` (ground truth JSON) and ``manifest.json``; the whole
-tree is written to a temporary sibling directory and renamed into place at the end.
+plus ``rf_iq/`` (complex64 I/Q), ``labels/`` (ground truth JSON) and ``manifest.json``, through the
+dataset driver shared with the native kind (simulator.dataset.driver: lock, resume, per-clip
+hashes in the manifest, ``evids verify``).
 
 MFCC: librosa, per 0.25 s segment (11 025 samples at 44.1 kHz) with n_fft = 1024 (23 ms),
 hop_length = 282 (= 11025 // 39), centred frames -> 1 + 11025 // 282 = 40 frames; 128 mel bands,
@@ -16,12 +17,10 @@ simulator.sensors.microphone), or pressure / full_scale_pa with the recorder dis
 from __future__ import annotations
 
 import hashlib
-import json
-import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Iterator, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -30,6 +29,7 @@ from scenes.kinds import DRONE_KINDS
 from scenes.loader import GENERATION_DIR
 from scenes.sampling import chance, drone_kind, log_uniform, sign, target_size, uniform
 from scenes.schema import Scenario
+from simulator.dataset.driver import Unit, VerifyReport
 from simulator.formats.trident import (
     FRAMES_PER_SEGMENT,
     LABELS,
@@ -42,11 +42,12 @@ from simulator.formats.trident import (
     VIDEO_PX,
     SegmentTruth,
     TridentClip,
+    clip_files,
     mfcc_hop_length,
     mfcc_segments,
     write_clip,
 )
-from simulator.jobs import run_jobs
+from simulator.jobs import JobError, Start, iter_jobs
 from simulator.physics.acoustics import (
     AUDIO_SAMPLE_RATE_HZ,
     Ambience,
@@ -534,8 +535,12 @@ def _versions() -> dict[str, str]:
 
 
 def _content_hash(root: Path) -> str:
+    """sha256 over every file of the dataset but its manifest and the driver's bookkeeping (lock, lease)."""
+    from simulator.files import BOOKKEEPING
+
     digest = hashlib.sha256()
-    for path in sorted(p for p in root.rglob("*") if p.is_file() and p.name != "manifest.json"):
+    for path in sorted(p for p in root.rglob("*") if p.is_file() and p.name != "manifest.json"
+                       and not (p.parent == root and p.name in BOOKKEEPING)):
         digest.update(str(path.relative_to(root)).encode())
         digest.update(hashlib.sha256(path.read_bytes()).digest())
     return digest.hexdigest()
@@ -606,16 +611,21 @@ def segment_drone_px(scenario: Scenario, seed: int, config: TridentConfig) -> np
     return np.where(seen.any(1), px.sum(1) / np.maximum(seen.sum(1), 1), 0.0)
 
 
-def _write_one_clip(tmp: Path, k: int, item: PlanItem, config: TridentConfig, frames_fn: FramesFn,
+def clip_unit_name(k: int) -> str:
+    """The driver's name of clip ``k`` (0-based): ``clip000001`` for the clip numbered 1 in file names."""
+    return f"clip{k + 1:06d}"
+
+
+def _write_one_clip(root: Path, k: int, item: PlanItem, config: TridentConfig, frames_fn: FramesFn,
                     n_frames: int) -> dict[str, Any]:
-    """Render, synthesise and write clip ``k`` (0-based) into ``tmp``; its manifest entry."""
+    """Render, synthesise and write clip ``k`` (0-based) into ``root``; its driver result."""
     frames = render_clip_frames(item.scenario, item.seed, config, frames_fn, n_frames, layout=item.layout)
     clip = synthesize_clip(item.scenario, item.seed, config, rf_silent=item.rf_silent,
                            ambience=item.ambience, frames=frames, rf_config=item.rf)
     meta = {"scenario": item.scenario.name, "seed": item.seed, "label": clip.truth.label, **item.meta,
             "drone_px": [round(float(v), 2) for v in segment_drone_px(item.scenario, item.seed, config)]}
-    write_clip(tmp, item.group, k + 1, clip, config, meta)
-    return {"clip": k + 1, "group": item.group, **{m: v for m, v in meta.items() if m != "drone_px"}}
+    write_clip(root, item.group, k + 1, clip, config, meta)
+    return {"name": clip_unit_name(k)}
 
 
 def _clip_worker_init() -> None:
@@ -624,66 +634,173 @@ def _clip_worker_init() -> None:
     dr.set_thread_count(1)  # one process per core: Dr.Jit's own pool would oversubscribe
 
 
-def _run_clip_jobs(jobs: list[tuple], workers: int, progress: bool, label: str) -> list[dict[str, Any]]:
-    """Each job's manifest entry (in job order) with a progress bar; in-process for one worker, else
-    a forkserver pool (simulator.jobs: workers die with the driver); a failed clip stops the run."""
-    start = "inline" if workers <= 1 or len(jobs) <= 1 else "forkserver"
-    return run_jobs(_write_one_clip, jobs, workers=workers, start=start, progress=label if progress else None,
-                    on_error="raise", initializer=_clip_worker_init)
+def _callable_id(fn: Any) -> str:
+    """A stable name of a frames function (module.qualname; a partial's arguments included)."""
+    import functools
+
+    if isinstance(fn, functools.partial):
+        return f"{_callable_id(fn.func)}{fn.args!r}{sorted(fn.keywords.items())!r}"
+    return f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', type(fn).__qualname__)}"
+
+
+LAYOUT_ROOTS = ("audio", "video", "rf", "rf_iq", "labels")
+
+
+def _clip_files(config: TridentConfig, label: str, group: str, number: int) -> list[str]:
+    return clip_files(label, group, number, n_frames=config.n_segments * config.frames_per_segment,
+                      n_segments=config.n_segments, save_iq=config.save_iq)
+
+
+def _files_hash(root: Path, files: list[str]) -> str:
+    """A clip's content hash: sha256 over its files' relative paths and contents, in sorted order."""
+    digest = hashlib.sha256()
+    for rel in sorted(files):
+        digest.update(rel.encode())
+        digest.update(hashlib.sha256((root / rel).read_bytes()).digest())
+    return digest.hexdigest()
+
+
+@dataclass
+class TridentDataset:
+    """The TRIDENT clip dataset kind (simulator.dataset.driver): one unit per clip, its files spread
+    over the layout's audio/, video/, rf/, rf_iq/ and labels/ folders."""
+
+    config: TridentConfig
+    seed: int
+    plan: list[PlanItem]
+    frames_fn: FramesFn
+    noun: str = "clip"
+
+    @property
+    def label(self) -> str:
+        return f"trident {self.config.name}"
+
+    @property
+    def n_frames(self) -> int:
+        return self.config.n_segments * self.config.frames_per_segment
+
+    def identity(self) -> str:
+        from simulator.dataset.driver import canonical_sha256
+
+        return canonical_sha256({"config": self.config.model_dump(mode="json"), "seed": int(self.seed),
+                                 "clips": len(self.plan), "frames": _callable_id(self.frames_fn)})
+
+    def units(self) -> list[Unit]:
+        return [Unit(clip_unit_name(k), k) for k in range(len(self.plan))]
+
+    def files(self, k: int) -> list[str]:
+        """Files of clip ``k`` relative to the root (simulator.formats.trident.clip_files)."""
+        item = self.plan[k]
+        return _clip_files(self.config, clip_label(item.scenario), item.group, k + 1)
+
+    def prepare(self, out: Path) -> None:
+        planned = {f for k in range(len(self.plan)) for f in self.files(k)}
+        for root in LAYOUT_ROOTS:
+            for path in sorted((out / root).rglob("*")) if (out / root).is_dir() else []:
+                if path.is_symlink() or (path.is_file() and path.relative_to(out).as_posix() not in planned):
+                    path.unlink()  # a link is never followed; a file no planned clip writes is a leftover
+
+    def unit_hash(self, out: Path, unit: Unit) -> str:
+        return _files_hash(out, self.files(unit.payload))
+
+    def unit_ok(self, out: Path, unit: Unit, recorded_hash: str | None) -> bool:
+        if recorded_hash is None or not all((out / rel).is_file() for rel in self.files(unit.payload)):
+            return False  # clips are not self-verifying: only a recorded, matching hash certifies one
+        return self.unit_hash(out, unit) == recorded_hash
+
+    def run(self, out: Path, todo: list[Unit], *, workers: int, progress: bool) -> Iterator[dict[str, Any]]:
+        calls = [(out, u.payload, self.plan[u.payload], self.config, self.frames_fn, self.n_frames) for u in todo]
+        start: Start = "inline" if workers <= 1 or len(calls) <= 1 else "forkserver"
+        for i, result in iter_jobs(_write_one_clip, calls, workers=workers, start=start, on_error="collect",
+                                   progress=self.label if progress else None, initializer=_clip_worker_init):
+            if isinstance(result, JobError):
+                why = f"worker process died ({result.error})" if result.died else result.message
+                result = {"name": todo[i].name, "error": why}
+            yield result
+
+    def manifest(self, units: list[Unit], hashes: dict[str, str], complete: bool, out: Path) -> dict[str, Any]:
+        clips = []
+        for k, item in enumerate(self.plan):
+            clips.append({"clip": k + 1, "name": clip_unit_name(k), "group": item.group,
+                          "scenario": item.scenario.name, "seed": item.seed, "label": clip_label(item.scenario),
+                          **item.meta, "content_sha256": hashes.get(clip_unit_name(k))})
+        return {
+            "format": "trident", "generator": "simulator.dataset.trident.generate_trident",
+            "dataset_id": self.identity(), "complete": complete, "seed": int(self.seed),
+            "config": self.config.model_dump(mode="json"), "clips": clips, "versions": _versions(),
+            "segment_s": SEGMENT_S, "audio_sample_rate_hz": AUDIO_SAMPLE_RATE_HZ,
+            "mfcc": {"n_fft": MFCC_N_FFT, "hop_length": mfcc_hop_length(int(SEGMENT_S * AUDIO_SAMPLE_RATE_HZ)),
+                     "n_mels": MFCC_N_MELS, "n_mfcc": MFCC_N_MFCC, "top_db": MFCC_TOP_DB},
+            "content_sha256": _content_hash(out) if complete else None,
+        }
 
 
 def generate_trident(config_or_name: str | Path | dict | TridentConfig, out_dir: str | Path, seed: int, *,
                      n_clips: int | None = None, progress: bool = True,
-                     render_frames: FramesFn | None = None, workers: int = 1) -> Path:
-    """Generate a TRIDENT-layout dataset into ``out_dir`` (must not exist or be empty); returns it.
+                     render_frames: FramesFn | None = None, workers: int = 1, overwrite: bool = False) -> Path:
+    """Generate (or finish) a TRIDENT-layout dataset in ``out_dir``; returns it.
 
     Clip k (0-based over the expanded clip list, first ``n_clips`` only) uses seed
     ``clip_seed(seed, k)`` and is numbered k + 1 in file names. ``render_frames(scenario, seed,
     n_frames, width_px, height_px)`` supplies video frames (default: the Mitsuba renderer).
-    Written to a temporary sibling directory first and renamed, so a failed run leaves nothing.
+    The dataset driver (simulator.dataset.driver) owns the rest: a folder holding this same dataset
+    is resumed (clips recorded intact are kept), another one is refused unless ``overwrite``; a
+    failed clip leaves the others recorded and raises GenerationFailed naming it.
     ``workers`` > 1 writes clips in that many processes (each clip depends only on its own seed, so
     the files are byte-identical for any worker count; ``render_frames`` must then be picklable).
     """
     from scenes.errors import UserInputError
+    from simulator.dataset.driver import drive
 
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise UserInputError(f"workers must be an integer >= 1, got {workers!r}")
     config = load_trident_config(config_or_name)
-    out = Path(out_dir)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise UserInputError(f"output directory {str(out)!r} exists and is not empty; choose a new --out")
     if n_clips is not None and n_clips < 1:
         raise UserInputError(f"n_clips must be >= 1, got {n_clips}")
     plan = build_plan(config, seed)
     if n_clips is not None:
         plan = plan[:n_clips]
-    frames_fn = render_frames or _default_frames
-    n_frames = config.n_segments * config.frames_per_segment
-    out.parent.mkdir(parents=True, exist_ok=True)
-    from simulator.files import clean_dead_temps, temp_sibling
+    kind = TridentDataset(config, seed, plan, render_frames or _default_frames)
+    inputs = ([Path(config_or_name)] if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file()
+              else [])
+    drive(kind, out_dir, inputs=inputs, overwrite=overwrite, workers=workers, progress=progress)
+    return Path(out_dir)
 
-    clean_dead_temps(out.parent, out.name)  # left by killed runs (never a live run's)
-    tmp = temp_sibling(out)
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    tmp.mkdir()
+
+def verify_trident(dataset_dir: str | Path) -> VerifyReport:
+    """Re-hash every clip of a generated TRIDENT dataset against its manifest (``evids verify``)."""
+    from scenes.errors import UserInputError
+    from simulator.files import check_plain_name
+    from simulator.formats.trident import read_manifest
+
+    root = Path(dataset_dir)
+    manifest = read_manifest(root) or {}
+    where = root / "manifest.json"
     try:
-        jobs = [(tmp, k, plan[k], config, frames_fn, n_frames) for k in range(len(plan))]
-        clips_meta = _run_clip_jobs(jobs, workers, progress, f"trident {config.name}")
-        clips_meta.sort(key=lambda c: c["clip"])
-        manifest = {
-            "format": "trident", "generator": "simulator.dataset.trident.generate_trident", "seed": int(seed),
-            "config": config.model_dump(mode="json"), "clips": clips_meta, "versions": _versions(),
-            "segment_s": SEGMENT_S, "audio_sample_rate_hz": AUDIO_SAMPLE_RATE_HZ,
-            "mfcc": {"n_fft": MFCC_N_FFT, "hop_length": mfcc_hop_length(int(SEGMENT_S * AUDIO_SAMPLE_RATE_HZ)),
-                     "n_mels": MFCC_N_MELS, "n_mfcc": MFCC_N_MFCC, "top_db": MFCC_TOP_DB},
-            "content_sha256": _content_hash(tmp),
-        }
-        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1))
-        if out.exists():
-            out.rmdir()
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out
+        config = load_trident_config(manifest.get("config") or {})
+    except (UserInputError, ValueError) as exc:
+        raise UserInputError(f"{where}: 'config' is not a TRIDENT generation config: {exc}") from None
+    clips = manifest.get("clips")
+    if not isinstance(clips, list):
+        raise UserInputError(f"{where}: key 'clips' is missing or not a list")
+    complete = manifest.get("complete", True) is True   # manifests before the driver had no flag
+    report = VerifyReport(incomplete=not complete, noun="clip")
+    for k, entry in enumerate(clips):
+        if not isinstance(entry, dict) or entry.get("label") not in LABELS or not isinstance(entry.get("clip"), int):
+            raise UserInputError(f"{where}: clips[{k}] needs a label ({'/'.join(LABELS)}) and an integer clip number")
+        group = check_plain_name(str(entry.get("group")), f"clips[{k}].group")
+        name = str(entry.get("name") or clip_unit_name(entry["clip"] - 1))
+        files = _clip_files(config, entry["label"], group, entry["clip"])
+        report.checked += 1
+        absent = [f for f in files if not (root / f).is_file()]
+        if len(absent) == len(files):
+            report.missing.append(name)
+        elif absent:
+            report.corrupt[name] = [f"{f} (absent)" for f in absent]
+        elif isinstance(entry.get("content_sha256"), str) and _files_hash(root, files) != entry["content_sha256"]:
+            report.corrupt[name] = ["content differs from manifest.json"]
+        elif complete and "name" in entry and not entry.get("content_sha256"):
+            report.corrupt[name] = ["manifest.json (no content hash recorded for a complete dataset)"]
+    if complete and not report.missing and not report.corrupt and manifest.get("content_sha256") != _content_hash(root):
+        report.corrupt["(dataset)"] = ["a file no clip lists was added, or a clip's file changed"]
+    return report

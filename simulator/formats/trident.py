@@ -186,6 +186,17 @@ def _encode_image(image: np.ndarray, ext: Literal[".jpg", ".png"], jpeg_quality:
     return buf.tobytes()
 
 
+def clip_files(label: str, group: str, number: int, *, n_frames: int, n_segments: int, save_iq: bool) -> list[str]:
+    """Paths (relative to the root, POSIX) that :func:`write_clip` writes for one clip with ``n_frames``
+    video frames and ``n_segments`` RF images, in the order it writes them."""
+    names = [f"audio/{label}/{group}/{number}.wav"]
+    names += [f"video/{label}/{group}/{number}_frame_{i}.jpg" for i in range(n_frames)]
+    names += [f"rf/{label}/{group}/{number}_rf_{s}.png" for s in range(n_segments)]
+    if save_iq:
+        names += [f"rf_iq/{label}/{group}/{number}.npy", f"rf_iq/{label}/{group}/{number}.sigmf-meta"]
+    return names + [f"labels/{label}/{group}/{number}.json"]
+
+
 def write_clip(root: Path, group: str, number: int, clip: TridentClip, config: ClipWriteSettings,
                meta: dict[str, Any] | None = None) -> list[Path]:
     """Write one clip under ``root`` (audio/, video/, rf/, rf_iq/, labels/); returns the paths written."""
@@ -448,6 +459,9 @@ def discover_clips(root: str | Path, *, strict: bool = True, skipped=None) -> li
     root = Path(root)
     skipped = skipped if skipped is not None else Skipped()
     manifest = read_manifest(root)
+    if manifest is not None and manifest.get("complete") is False:
+        raise ValueError(f"root: {str(root)!r} is an unfinished generated dataset (its manifest says complete: "
+                         "false); re-run the same `evids generate` command to finish it")
     if is_public_layout(root):
         return _discover_public(root, manifest, strict, skipped)
     for modality in ("audio", "video", "rf"):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -15,7 +16,8 @@ import yaml
 
 from harness.cli import main
 from simulator import files
-from simulator.dataset.generate import MANIFEST, verify_dataset, write_manifest
+from simulator.dataset.driver import MANIFEST, write_manifest
+from simulator.dataset.generate import verify_dataset
 from simulator.files import MARKER_FILE, write_hashes
 from tests.reliability.helpers import tree_digest
 
@@ -259,22 +261,54 @@ def test_markers_do_not_change_sequence_hashes(tiny_dataset):
     assert os.path.exists(tiny_dataset / "sequences" / "seq000001" / MARKER_FILE)
 
 
-def test_trident_cleans_a_killed_runs_temporary_and_keeps_a_live_ones(tmp_path):
+def test_trident_resumes_after_a_killed_run_whose_lock_is_stale(tmp_path):
+    """A TRIDENT dataset goes through the one dataset driver: a dead writer's lock is cleared, the
+    clip it had recorded is kept, the rest is written, and the result equals an uninterrupted run."""
     import numpy as np
 
     from simulator.dataset.trident import generate_trident
 
-    dead = subprocess.Popen([sys.executable, "-c", "pass"])
-    dead.wait()
-    host = files._host_tag()
-    stale = tmp_path / f".tmp-tri-r{dead.pid}-{host}-abcdef"
-    live = tmp_path / f".tmp-tri-r{os.getpid()}-{host}-fedcba"
-    stale.mkdir()
-    live.mkdir()
-
     def frames(scenario, seed, n, w, h, layout=None):
         return np.zeros((n, h, w, 3), np.uint8)
 
-    config = {"name": "t", "clip_duration_s": 0.25, "save_iq": False, "clips": [{"scenario": "clear_day_quad"}]}
-    generate_trident(config, tmp_path / "tri", 0, progress=False, render_frames=frames)
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["tri", live.name])
+    config = {"name": "t", "clip_duration_s": 0.25, "save_iq": False,
+              "clips": [{"scenario": "clear_day_quad", "count": 2}]}
+    ref = generate_trident(config, tmp_path / "ref", 0, progress=False, render_frames=frames)
+    tri = tmp_path / "tri"
+    shutil.copytree(ref, tri)
+    manifest = json.loads((tri / "manifest.json").read_text())
+    manifest.update(complete=False, content_sha256=None)
+    manifest["clips"][1]["content_sha256"] = None            # the killed run had recorded clip 1 only
+    (tri / "manifest.json").write_text(json.dumps(manifest))
+    for path in (tri / "rf").rglob("2_rf_*.png"):
+        path.write_bytes(b"half-written")
+    (tri / files.LOCK_FILE).write_text(json.dumps({"pid": 999999, "host": "elsewhere", "run_id": "x"}))
+    generate_trident(config, tri, 0, progress=False, render_frames=frames)
+    assert not (tri / files.LOCK_FILE).exists()
+    assert verify_dataset(tri).ok
+    names = sorted(p.relative_to(ref) for p in ref.rglob("*") if p.is_file())
+    assert names == sorted(p.relative_to(tri) for p in tri.rglob("*") if p.is_file())
+    assert [n for n in names if (ref / n).read_bytes() != (tri / n).read_bytes()] == []
+
+
+def test_trident_generate_and_verify_from_the_command_line(tmp_path, capsys):
+    config = tmp_path / "t.yaml"
+    config.write_text(yaml.safe_dump({"name": "t", "clip_duration_s": 0.25, "save_iq": False,
+                                      "clips": [{"scenario": "clear_day_quad"}]}))
+    out = tmp_path / "tri"
+    code, err = run(capsys, "generate", config, "--format", "trident", "--out", out, "--sequences", "3", "--quiet")
+    assert code == 2 and "--sequences" in err and not out.exists()
+    code, err = run(capsys, "generate", config, "--format", "trident", "--out", out, "--quiet", "--workers", "2")
+    assert code == 0, err
+    code, _ = run(capsys, "verify", out)
+    assert code == 0
+    wav = next((out / "audio").rglob("1.wav"))
+    wav.write_bytes(wav.read_bytes()[:-2])
+    try:
+        main(["verify", str(out)])
+        code = 0
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    assert code == 1 and "corrupt: clip000001 (content differs from manifest.json)" in capsys.readouterr().out
+    code, err = run(capsys, "generate", config, "--format", "trident", "--out", out, "--quiet")  # repairs it
+    assert code == 0 and verify_dataset(out).ok

@@ -204,7 +204,8 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     from harness.report.sim2real import write_page
     from harness.runfolder import write_json
     from scenes.errors import UserInputError
-    from simulator.dataset.generate import GenerationFailed, generate_dataset
+    from simulator.dataset.driver import GenerationFailed
+    from simulator.dataset.generate import generate_dataset
     from simulator.formats.svanstrom import open_benchmark
     from simulator.seeding import rng_for
 

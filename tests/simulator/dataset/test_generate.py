@@ -12,8 +12,8 @@ import pytest
 
 from scenes.errors import UserInputError
 from simulator.dataset import generate as gen
+from simulator.dataset.driver import GenerationFailed
 from simulator.dataset.generate import (
-    GenerationFailed,
     generate_dataset,
     load_manifest,
     verify_dataset,

@@ -97,19 +97,85 @@ def test_generate_is_deterministic_atomic_and_in_trident_layout(tmp_path):
             "rf/Background/birds/2_rf_3.png", "rf_iq/Drone/quad/1.npy", "labels/Drone/quad/1.json",
             "manifest.json"} <= names
     assert sum(n.startswith("video/Drone/quad/") for n in names) == 28
+    from simulator.formats.trident import clip_files
+
+    listed = clip_files("Drone", "quad", 1, n_frames=28, n_segments=4, save_iq=True)
+    listed += clip_files("Background", "birds", 2, n_frames=28, n_segments=4, save_iq=True)
+    assert names == set(listed) | {"manifest.json"}          # the layout's one file list is what write_clip writes
     assert sum(n.startswith("rf/Drone/quad/") for n in names) == 4
     manifest = json.loads((a / "manifest.json").read_text())
     assert manifest["seed"] == 5 and len(manifest["clips"]) == 2 and len(manifest["content_sha256"]) == 64
     assert np.load(a / "rf_iq/Drone/quad/1.npy").dtype == np.complex64
+    assert manifest["complete"] is True and [c["name"] for c in manifest["clips"]] == ["clip000001", "clip000002"]
+    assert all(len(c["content_sha256"]) == 64 for c in manifest["clips"])
+    before = {f: (a / f).read_bytes() for f in files}
+    assert tr.generate_trident(cfg, a, 5, progress=False, render_frames=_frames) == a    # the same dataset: kept
+    assert {f: (a / f).read_bytes() for f in files} == before
+    with pytest.raises(UserInputError, match="different dataset"):
+        tr.generate_trident(cfg, a, 6, progress=False, render_frames=_frames)
+    (tmp_path / "e").mkdir()
+    (tmp_path / "e" / "notes.txt").write_text("mine")
     with pytest.raises(UserInputError, match="not empty"):
-        tr.generate_trident(cfg, a, 5, progress=False, render_frames=_frames)
+        tr.generate_trident(cfg, tmp_path / "e", 5, progress=False, render_frames=_frames)
+    assert (tmp_path / "e" / "notes.txt").read_text() == "mine"
 
-    def broken(*args):
+
+_FAIL_ON = set()
+
+
+def _flaky_frames(scenario, seed, n, w, h, layout=None):
+    if scenario.name in _FAIL_ON:
         raise RuntimeError("renderer exploded")
+    return _frames(scenario, seed, n, w, h, layout)
 
-    with pytest.raises(RuntimeError):
-        tr.generate_trident(cfg, tmp_path / "d", 5, progress=False, render_frames=broken)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b", "c"]      # nothing half-written
+
+def test_a_failed_clip_is_named_the_others_are_kept_and_a_rerun_finishes_byte_identical(tmp_path):
+    from simulator.dataset.driver import GenerationFailed
+    from simulator.dataset.generate import verify_dataset
+    from simulator.formats.trident import discover_clips
+
+    cfg = _config([{"scenario": _scenario([_hover("d", [0, 80, 20])], name="quad"), "count": 1},
+                   {"scenario": _scenario([_hover("b", [0, 70, 20], kind="bird")], name="bird"), "group": "birds"}])
+    ref = tr.generate_trident(cfg, tmp_path / "ref", 5, progress=False, render_frames=_flaky_frames)
+    _FAIL_ON.add("bird")
+    try:
+        with pytest.raises(GenerationFailed, match="clip000002: RuntimeError: renderer exploded"):
+            tr.generate_trident(cfg, tmp_path / "d", 5, progress=False, render_frames=_flaky_frames)
+    finally:
+        _FAIL_ON.clear()
+    d = tmp_path / "d"
+    partial = json.loads((d / "manifest.json").read_text())
+    assert partial["complete"] is False and partial["content_sha256"] is None
+    assert [c["content_sha256"] is not None for c in partial["clips"]] == [True, False]   # clip 1 recorded
+    assert verify_dataset(d).incomplete and not verify_dataset(d).ok
+    with pytest.raises(ValueError, match="unfinished"):
+        discover_clips(d)
+    kept = (d / "audio/Drone/quad/1.wav").stat().st_mtime_ns
+    tr.generate_trident(cfg, d, 5, progress=False, render_frames=_flaky_frames)
+    assert (d / "audio/Drone/quad/1.wav").stat().st_mtime_ns == kept    # the recorded clip was not rewritten
+    files = sorted(p.relative_to(ref) for p in ref.rglob("*") if p.is_file())
+    assert files == sorted(p.relative_to(d) for p in d.rglob("*") if p.is_file())
+    assert [f for f in files if (ref / f).read_bytes() != (d / f).read_bytes()] == []   # manifest included
+    report = verify_dataset(d)
+    assert report.ok and report.checked == 2 and report.noun == "clip"
+
+
+def test_verify_names_a_changed_or_missing_clip_and_a_rerun_repairs_it(tmp_path):
+    from simulator.dataset.generate import verify_dataset
+
+    cfg = _config([{"scenario": _scenario([_hover("d", [0, 80, 20])], name="quad"), "count": 2}])
+    d = tr.generate_trident(cfg, tmp_path / "d", 3, progress=False, render_frames=_frames)
+    good = (d / "rf/Drone/quad/2_rf_1.png").read_bytes()
+    (d / "rf/Drone/quad/2_rf_1.png").write_bytes(good[:-7])
+    assert verify_dataset(d).corrupt == {"clip000002": ["content differs from manifest.json"]}
+    (d / "labels/Drone/quad/1.json").unlink()
+    assert verify_dataset(d).corrupt["clip000001"] == ["labels/Drone/quad/1.json (absent)"]
+    (d / "video/Drone/quad/stray.jpg").write_bytes(b"x")
+    tr.generate_trident(cfg, d, 3, progress=False, render_frames=_frames)
+    assert verify_dataset(d).ok and (d / "rf/Drone/quad/2_rf_1.png").read_bytes() == good
+    assert not (d / "video/Drone/quad/stray.jpg").exists()
+    (d / "extra.txt").write_text("x")
+    assert verify_dataset(d).corrupt == {"(dataset)": ["a file no clip lists was added, or a clip's file changed"]}
 
 
 def test_config_errors_name_the_field_and_preset_validates():
