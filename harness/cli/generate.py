@@ -15,7 +15,7 @@ from scenes.errors import UserInputError
 
 
 def _formats(text: str) -> tuple[str, ...]:
-    from simulator.dataset.generate import EXPORT_FORMATS
+    from simulator.dataset.exporters import EXPORT_FORMATS
 
     formats = tuple(dict.fromkeys(f.strip() for f in text.split(",") if f.strip()))
     valid = ("native",) + EXPORT_FORMATS
@@ -130,7 +130,7 @@ def export(
 
     Example: evids export out/mixed --format mot --out out/mixed_mmuav --annotate-every 20
     """
-    from simulator.dataset.generate import EXPORT_FORMATS, TRIDENT_EXPORT_FORMATS, export_dataset
+    from simulator.dataset.exporters import EXPORT_FORMATS, TRIDENT_EXPORT_FORMATS, export_dataset
 
     formats = [f.strip() for f in fmt.split(",") if f.strip() and f.strip() != "native"]
     valid = set(EXPORT_FORMATS) | set(TRIDENT_EXPORT_FORMATS)
@@ -144,7 +144,7 @@ def export(
             require_module(module, f"--format {f}", f"pip install -e '.[{extra}]' (bash run.sh installs it)")
     if distractors_as not in ("class", "file"):
         raise UserInputError(f"--distractors-as must be 'class' or 'file', got {distractors_as!r}")
-    from simulator.dataset.generate import export_inputs
+    from simulator.dataset.exporters import export_inputs
     from simulator.files import check_output
 
     targets = {f: (out if len(formats) == 1 else out / f) if out is not None else dataset / f

@@ -9,7 +9,7 @@ Layout (docs/DATASETS.md)::
 The output rules, the lock, resume and the manifest (written first with ``"complete": false``,
 rewritten as each sequence finishes, last with ``"complete": true``) belong to the driver shared
 with the TRIDENT kind (:mod:`simulator.dataset.driver`); this module is the native kind: its plan,
-its per-sequence render task, and verify/export of a native dataset.
+its per-sequence render task, and verify (exports: simulator.dataset.exporters).
 """
 from __future__ import annotations
 
@@ -41,10 +41,9 @@ from simulator.dataset.driver import (
     clean_stale,
     drive,
 )
+from simulator.dataset.exporters import EXPORT_FORMATS, dataset_kind, export_locked
 from simulator.files import (
     HASH_FILE,
-    DatasetLock,
-    check_output,
     check_plain_name,
     inside,
     verify_hashes,
@@ -53,8 +52,6 @@ from simulator.jobs import JobError, Start, iter_jobs, threads_per_worker
 
 SEQUENCES_DIR = "sequences"
 DATASET_FORMAT = "evids-native-dataset"
-EXPORT_FORMATS = ("antiuav", "antiuav_rgbt", "antiuav2021", "mot", "coco", "webdataset", "zarr")
-TRIDENT_EXPORT_FORMATS = ("trident", "webdataset")     # formats a TRIDENT clip dataset exports to
 EXECUTORS = ("local", "ray")
 
 
@@ -262,7 +259,7 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
     def export(result: GenerationResult) -> None:  # under the dataset lock, after the final manifest
         for fmt in formats:
             if fmt != "native":
-                result.exports[fmt] = _export_locked(result.out_dir, fmt, result.out_dir / fmt, overwrite=True,
+                result.exports[fmt] = export_locked(result.out_dir, fmt, result.out_dir / fmt, overwrite=True,
                                                      progress=progress)
 
     return drive(kind, out_dir, inputs=config_file, overwrite=overwrite, workers=workers, progress=progress,
@@ -323,7 +320,7 @@ def verify_dataset(dataset_dir: str | Path, *, progress: bool = False) -> Verify
     """Re-hash every sequence against its files.sha256 and the manifest's content hash (a TRIDENT clip
     dataset: every clip against the manifest, simulator.dataset.trident.verify_trident)."""
     root = Path(dataset_dir)
-    if _is_trident_dataset(root):
+    if dataset_kind(root) == "trident":
         from simulator.dataset.trident import verify_trident
 
         return verify_trident(root)
@@ -409,143 +406,3 @@ def dataset_sequences(dataset_dir: str | Path) -> list[dict[str, Any]]:
     for e in entries:
         inside(root / SEQUENCES_DIR / e["name"], root / SEQUENCES_DIR)  # no link out of the dataset either
     return [{**e, "path": root / SEQUENCES_DIR / e["name"]} for e in entries]
-
-
-def export_inputs(dataset_dir: str | Path, out_dir: str | Path) -> list[Path]:
-    """What an export reads (and so may never overwrite or enclose): a native dataset's manifest and
-    sequences/, or every top-level entry of a TRIDENT clip dataset except ``out_dir`` itself."""
-    root, out = Path(dataset_dir), Path(out_dir)
-    if _is_trident_dataset(root):
-        return [c for c in sorted(root.iterdir()) if c.resolve() != out.resolve() and not c.name.startswith(".")]
-    return [root / MANIFEST, root / SEQUENCES_DIR]
-
-
-def export_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, annotate_every: int = 1,
-                   distractors: bool | str | None = None, coco_naming: str = "evids", mfcc: str = "evids",
-                   test_fraction: float = 0.2, shard_mb: float = 500.0, progress: bool = True,
-                   overwrite: bool = False) -> Path:
-    """Export a complete dataset (see :func:`_export_locked`) under the safe-output rule: ``out_dir``
-    is new/empty, or an earlier evids export replaced only with ``overwrite``; never the dataset's
-    manifest or data folders, nor a folder containing them. Holds the dataset lock."""
-    root = Path(dataset_dir)
-    out = Path(out_dir)
-    if not (root / MANIFEST).is_file():
-        raise UserInputError(f"{root} is not an evids dataset (no {MANIFEST})")
-    check_output(out, inputs=export_inputs(root, out), overwrite=overwrite)
-    with DatasetLock(root, f"export {fmt}", required=False):
-        return _export_locked(root, fmt, out, annotate_every=annotate_every, distractors=distractors,
-                              coco_naming=coco_naming, mfcc=mfcc, test_fraction=test_fraction, shard_mb=shard_mb,
-                              progress=progress, overwrite=overwrite)
-
-
-def _export_locked(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, annotate_every: int = 1,
-                   distractors: bool | str | None = None, coco_naming: str = "evids", mfcc: str = "evids",
-                   test_fraction: float = 0.2, shard_mb: float = 500.0, progress: bool = True,
-                   overwrite: bool = False) -> Path:
-    """Export a complete dataset to ``fmt`` under ``out_dir`` (docs/FORMATS.md); written to a temporary
-    sibling and renamed, so a failure leaves ``out_dir`` as it was.
-
-    Native datasets export to antiuav, antiuav_rgbt, antiuav2021, mot (MM-UAV dataset layout plus the
-    MOTChallenge evaluation layout under ``gt/``), coco, webdataset and zarr (thermal kelvin stacks,
-    the optional zarr extra); TRIDENT clip datasets (made by
-    ``evids generate --format trident``) to trident (the public layout) and webdataset.
-
-    ``distractors`` (birds, aircraft): mot default ``none`` (exactly MM-UAV); True or ``class`` = rows
-    of class 1 ``not_drone``, ``file`` = a separate distractors.txt; coco default on (flagged
-    categories); Anti-UAV is single-object (the first drone) either way. ``coco_naming``: ``evids`` or
-    ``mmuav`` (``train-ir.json``, file_name from the dataset root). ``mfcc`` (trident): the MFCC
-    pipeline recorded for readers, ``evids`` (correct) or ``trident`` (the public code's)."""
-    from simulator.files import atomic_folder
-
-    if annotate_every < 1:
-        raise UserInputError(f"--annotate-every must be >= 1, got {annotate_every}")
-    if _is_trident_dataset(dataset_dir):
-        return _export_trident_dataset(dataset_dir, fmt, out_dir, mfcc=mfcc, test_fraction=test_fraction,
-                                       shard_mb=shard_mb, progress=progress, overwrite=overwrite)
-    if fmt not in EXPORT_FORMATS:
-        raise UserInputError(f"--format must be one of {', '.join(EXPORT_FORMATS)}, got {fmt!r}")
-    from simulator.formats.coco import NAMINGS
-    from simulator.formats.mot import DISTRACTOR_MODES, distractor_mode
-
-    if coco_naming not in NAMINGS:
-        raise UserInputError(f"--coco-naming must be one of {', '.join(NAMINGS)}, got {coco_naming!r}")
-    if isinstance(distractors, str) and distractors not in DISTRACTOR_MODES:
-        raise UserInputError(f"--distractors must be one of {', '.join(DISTRACTOR_MODES)}, got {distractors!r}")
-    entries = dataset_sequences(dataset_dir)
-    out = Path(out_dir)
-    with atomic_folder(out, overwrite=overwrite, kind=f"export {fmt}") as tmp:
-        if fmt in ("antiuav", "antiuav_rgbt", "antiuav2021"):
-            from simulator.formats import antiuav
-
-            writer = {"antiuav": antiuav.export_antiuav, "antiuav_rgbt": antiuav.export_antiuav_rgbt,
-                      "antiuav2021": antiuav.export_antiuav2021}[fmt]
-            for e in _track(entries, progress, f"export {fmt}"):
-                writer(e["path"], tmp / e["split"], e["name"])
-        elif fmt == "mot":
-            from simulator.formats.mot import export_mmuav, write_eval_layout
-
-            splits: dict[str, list[str]] = {}
-            for e in _track(entries, progress, "export mot"):
-                name = mmuav_number(e["index"])
-                export_mmuav(e["path"], tmp / e["split"], name, annotate_every=annotate_every,
-                             distractors=distractor_mode(distractors))
-                splits.setdefault(e["split"], []).append(name)
-            write_eval_layout(tmp, tmp, splits)
-        elif fmt == "coco":
-            from simulator.formats.coco import export_coco
-
-            export_coco(entries, tmp, distractors=distractors not in (False, "none"), progress=progress,
-                        naming=coco_naming)
-        elif fmt == "zarr":
-            from simulator.formats.kelvin_zarr import export_kelvin_zarr
-
-            export_kelvin_zarr(entries, tmp, progress=progress)
-        else:
-            from simulator.formats.webdataset import export_native_webdataset
-
-            export_native_webdataset(entries, tmp, shard_bytes=int(shard_mb * 1e6), progress=progress)
-    return out
-
-
-def _is_trident_dataset(dataset_dir: str | Path) -> bool:
-    path = Path(dataset_dir) / MANIFEST
-    if not path.is_file():
-        return False
-    try:
-        return json.loads(path.read_text()).get("format") == "trident"
-    except (ValueError, UnicodeDecodeError, AttributeError):
-        return False
-
-
-def _export_trident_dataset(dataset_dir: str | Path, fmt: str, out_dir: str | Path, *, mfcc: str,
-                            test_fraction: float, shard_mb: float, progress: bool, overwrite: bool = False) -> Path:
-    """TRIDENT clip dataset -> the public TRIDENT layout or WebDataset shards of segments."""
-    from simulator.files import atomic_folder
-
-    if fmt not in TRIDENT_EXPORT_FORMATS:
-        raise UserInputError(f"{dataset_dir}: a TRIDENT clip dataset exports to {', '.join(TRIDENT_EXPORT_FORMATS)} "
-                             f"only, got {fmt!r}")
-    out = Path(out_dir)
-    with atomic_folder(out, overwrite=overwrite, kind=f"export {fmt}") as tmp:
-        if fmt == "trident":
-            from simulator.formats.trident import export_public
-
-            export_public(dataset_dir, tmp, mfcc=mfcc, test_fraction=test_fraction, progress=progress)
-        else:
-            from simulator.formats.webdataset import export_trident_webdataset
-
-            export_trident_webdataset(dataset_dir, tmp, shard_bytes=int(shard_mb * 1e6), mfcc=mfcc, progress=progress)
-    return out
-
-
-def mmuav_number(index: int) -> str:
-    """MM-UAV sequence folder name of dataset sequence ``index`` (0-based): 0001, 0002, ..."""
-    return f"{index + 1:04d}"
-
-
-def _track(items: list, progress: bool, label: str) -> Iterable:
-    if not progress:
-        return items
-    from rich.progress import track
-
-    return track(items, description=label)

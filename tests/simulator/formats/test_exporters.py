@@ -5,7 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from simulator.dataset.generate import export_dataset, generate_dataset, load_manifest
+from simulator.dataset.exporters import export_dataset
+from simulator.dataset.generate import generate_dataset, load_manifest
 from simulator.formats import antiuav as antiuav_loader
 from simulator.formats import coco as coco_loader
 from simulator.formats import mot as mot_loader

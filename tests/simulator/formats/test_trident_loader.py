@@ -156,7 +156,7 @@ def test_sigmf_meta_beside_the_saved_iq(generated):
 def test_export_public_layout_and_read_it_back(generated, tmp_path):
     import cv2
 
-    from simulator.dataset.generate import export_dataset
+    from simulator.dataset.exporters import export_dataset
     from simulator.formats.sigmf import read_sigmf
 
     out = export_dataset(generated, "trident", tmp_path / "pub", mfcc="trident", test_fraction=0.4, progress=False)
@@ -274,7 +274,7 @@ def test_generated_clip_missing_a_frame_is_refused(generated, tmp_path):
 
 
 def test_webdataset_of_a_clip_set(generated, tmp_path):
-    from simulator.dataset.generate import export_dataset
+    from simulator.dataset.exporters import export_dataset
     from simulator.formats import webdataset as wdsfmt
 
     out = export_dataset(generated, "webdataset", tmp_path / "wds", mfcc="trident", progress=False)
@@ -311,7 +311,7 @@ def test_corrupt_labels_json(generated, tmp_path, labels, message):
 
 
 def test_load_iq_from_both_layouts(generated, tmp_path):
-    from simulator.dataset.generate import export_dataset
+    from simulator.dataset.exporters import export_dataset
     from simulator.formats.trident import load_iq
 
     out = export_dataset(generated, "trident", tmp_path / "pub", progress=False)
