@@ -1,7 +1,9 @@
 """The detection experiment: ``train`` (data + five detectors), ``evaluate`` (conditions (a)-(h),
 thresholds fitted on val only, tracking, metrics through pycocotools / TrackEval / the Anti-UAV
-formula on exported files, uncertainty analyses, gating time); the statistics and headline answers
-from its tables are in :mod:`harness.experiments.detection.summary`.
+formula on exported files, uncertainty analyses, gating time). Its jobs by module: inference
+(maps and each condition's detections) in :mod:`~harness.experiments.detection.detect`, fitting on
+val in :mod:`~harness.experiments.detection.fit`, the statistics and headline answers from its tables
+in :mod:`~harness.experiments.detection.summary`.
 
 Run folder: ``config.json`` (resolved config, every seed and hyper-parameter), ``data.json`` (the
 datasets, their manifests' ids and the load-time degradations), ``models/*.pt`` + ``train.json``,
@@ -22,11 +24,6 @@ import torch
 from harness.experiments.detection.conditions import (
     StreamMaps,
     frame_vacuity,
-    fused_matched,
-    fused_registered,
-    gate_mask,
-    run_model,
-    single_stream,
 )
 from harness.experiments.detection.config import (
     DETECTION_CONDITIONS,
@@ -36,8 +33,10 @@ from harness.experiments.detection.config import (
     split_key,
 )
 from harness.experiments.detection.data import SequenceData, crop_resize, dataset_entries, inputs, load_sequence
+from harness.experiments.detection.detect import compute_maps, condition_dets, gt_of
+from harness.experiments.detection.fit import fit_gate, fit_temperature_on_val, fit_tracking
 from harness.experiments.detection.summary import summarise_run
-from harness.experiments.detection.tracking import FrameDetections, run_tracker, tracking_on_absence
+from harness.experiments.detection.tracking import run_tracker, tracking_on_absence
 from harness.experiments.detection.train import MODEL_IDS, build_model, train_model
 from harness.runfolder import create_run_folder, mark_stage, write_csv, write_json
 from scenes.errors import UserInputError
@@ -46,7 +45,6 @@ from simulator.jobs import run_jobs
 
 Log = Callable[[str], None]
 
-MATCH_PX = 24.0
 
 
 def models_needed(conditions: list[str]) -> list[str]:
@@ -194,174 +192,6 @@ def load_models(run_dir: Path, cfg: DetectionConfig) -> dict[str, torch.nn.Modul
         m.load_state_dict(torch.load(path, weights_only=True))
         models[name] = m.eval()
     return models
-
-
-# ------------------------------------------------------------------------------------- inference
-def compute_maps(seq: SequenceData, models: dict[str, torch.nn.Module]) -> dict[str, StreamMaps]:
-    x = inputs(seq)
-    maps: dict[str, StreamMaps] = {}
-    for name, m in models.items():
-        if name == "fusion_sigmoid":
-            maps[name] = run_model(m, (x["rgb"], x["thermal"]))
-        else:
-            maps[name] = run_model(m, x[name.split("_")[0]])
-    return maps
-
-
-def gated_dets(seq: SequenceData, maps: dict[str, StreamMaps], cfg: DetectionConfig, gate: dict[str, float]):
-    """Condition (f): DS with the window-form hysteresis gate on per-frame stream vacuity."""
-    floor, k = cfg.tracker.score_floor, cfg.tracker.max_peaks
-    r, t = maps["rgb_evidential"], maps["thermal_evidential"]
-    avail, evaluated = gate_mask(frame_vacuity(r), frame_vacuity(t), gate["tau_high"], gate["tau_low"], cfg.gate.n)
-    if seq.registered:
-        return fused_registered(r, t, "ds", floor, k, avail), avail, evaluated
-    return fused_matched(r, t, "ds", floor, k, MATCH_PX, avail), avail, evaluated
-
-
-def condition_dets(seq: SequenceData, maps: dict[str, StreamMaps], cfg: DetectionConfig,
-                   gate: dict[str, float] | None, temperature: float | None) -> dict[str, Any]:
-    """All condition-stream detections of one sequence (f needs ``gate``, h needs ``temperature``)."""
-    floor, k = cfg.tracker.score_floor, cfg.tracker.max_peaks
-    dets: dict[str, Any] = {}
-    gate_info = None
-    for c in cfg.conditions:
-        if c == "a_sigmoid":
-            for s in ("rgb", "thermal"):
-                dets[f"{c}/{s}"] = single_stream(maps[f"{s}_sigmoid"], floor, k)
-        elif c in ("b_evidential", "c_evidential_tau"):
-            for s in ("rgb", "thermal"):
-                dets[f"{c}/{s}"] = dets.get(f"b_evidential/{s}") or single_stream(maps[f"{s}_evidential"], floor, k)
-        elif c in ("d_average", "e_ds"):
-            rule = "average" if c == "d_average" else "ds"
-            r, t = maps["rgb_evidential"], maps["thermal_evidential"]
-            if seq.registered:
-                dets[f"{c}/fused"] = fused_registered(r, t, rule, floor, k)
-            else:
-                dets[f"{c}/fused"] = fused_matched(r, t, rule, floor, k, MATCH_PX)
-        elif c == "f_ds_gated" and gate is not None:
-            dets[f"{c}/fused"], avail, evaluated = gated_dets(seq, maps, cfg, gate)
-            gate_info = {"fused": avail, "evaluated": evaluated}
-        elif c == "g_feature_fusion":
-            dets[f"{c}/fused"] = single_stream(maps["fusion_sigmoid"], floor, k)
-        elif c == "h_feature_fusion_ts" and temperature is not None:
-            fm = maps["fusion_sigmoid"]
-            z = fm.logit / temperature
-            dets[f"{c}/fused"] = single_stream(StreamMaps(torch.sigmoid(z), fm.box, None, z), floor, k)
-    extra: dict[str, Any] = {"gate": gate_info}
-    if "thermal_evidential" in maps:
-        extra["thermal_u_at_target"], extra["thermal_p_at_target"] = _at_target(maps["thermal_evidential"],
-                                                                                seq.gt_thermal)
-        extra["rgb_u_at_target"], extra["rgb_p_at_target"] = _at_target(maps["rgb_evidential"], seq.gt_rgb)
-        extra["frame_u"] = {"rgb": frame_vacuity(maps["rgb_evidential"]),
-                            "thermal": frame_vacuity(maps["thermal_evidential"])}
-        if seq.registered:
-            extra["ds_conflict_at_target"] = fuse_maps_at_target(maps, seq)[2]
-    return {"dets": dets, "extra": extra}
-
-
-def _at_target(maps: StreamMaps, gt: list) -> tuple[np.ndarray, np.ndarray]:
-    from evids.models.detector import STRIDE
-
-    h, w = maps.prob.shape[1:]
-    u, p = np.full(len(gt), np.nan), np.full(len(gt), np.nan)
-    for t, g in enumerate(gt):
-        if g is None:
-            continue
-        i = min(int((g[1] + g[3] / 2) // STRIDE), h - 1)
-        j = min(int((g[0] + g[2] / 2) // STRIDE), w - 1)
-        u[t] = float(maps.vacuity[t, i, j])
-        p[t] = float(maps.prob[t, i, j])
-    return u, p
-
-
-def fuse_maps_at_target(maps: dict[str, StreamMaps], seq: SequenceData):
-    from evids.models.detector import STRIDE
-    from harness.experiments.detection.conditions import fuse_maps
-
-    p, u, c = fuse_maps(maps["rgb_evidential"], maps["thermal_evidential"], "ds")
-    h, w = p.shape[1:]
-    out = np.full(seq.n_frames, np.nan)
-    for t, g in enumerate(seq.gt_rgb):
-        if g is not None:
-            out[t] = float(c[t, min(int((g[1] + g[3] / 2) // STRIDE), h - 1), min(int((g[0] + g[2] / 2) // STRIDE),
-                                                                                  w - 1)])
-    return p, u, out
-
-
-def gt_of(seq: SequenceData, key: str) -> list:
-    return seq.gt_thermal if split_key(key)[1] == "thermal" else seq.gt_rgb
-
-
-# ------------------------------------------------------------------------------------ fitting
-def _seq_state(frames: list[FrameDetections], gt: list, det_thr: float, theta: float, cfg,
-               tau_det=None) -> tuple[float, list]:
-    from harness.experiments.detection.metrics import per_frame_state_values
-
-    steps = run_tracker(frames, det_thr, theta, cfg.tracker.search_px, tau_det)
-    return float(np.mean(per_frame_state_values([s.box for s in steps], gt))), steps
-
-
-def fit_tracking(val: list[tuple[SequenceData, dict]], key: str, cfg: DetectionConfig,
-                 tau_det_grid: bool = False) -> dict[str, float]:
-    """Grid search on val for the detection threshold and the tracker's switching threshold theta
-    (and tau_det for condition (c)), maximising mean per-sequence state accuracy."""
-    det_grid = [0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9]
-    unc_all = np.concatenate([np.concatenate([f.uncertainty for f in out["dets"][key][0]] or [np.zeros(0)])
-                              for _, out in val]) if val else np.zeros(0)
-    qs = np.unique(np.quantile(unc_all, [0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 1.0])) if unc_all.size else np.array([1.0])
-    theta_grid = [float(q) + 1e-9 for q in qs] if cfg.tracker.theta is None else [cfg.tracker.theta]
-    tau_grid = [None] + ([float(q) + 1e-9 for q in qs] if tau_det_grid else [])
-    best = {"score": -1.0}
-    for d in det_grid:
-        for th in theta_grid:
-            for tau in tau_grid:
-                if tau_det_grid and tau is None:
-                    continue
-                vals = [_seq_state(out["dets"][key][0], gt_of(seq, key), d, th, cfg, tau)[0] for seq, out in val]
-                score = float(np.mean(vals)) if vals else 0.0
-                if score > best["score"] + 1e-12:
-                    best = {"score": score, "det_threshold": d, "theta": th, "tau_det": tau}
-    best["fitted_on"] = "val"
-    return best
-
-
-def fit_gate(val: list[tuple[SequenceData, dict]], val_maps: list[dict], cfg: DetectionConfig,
-             track_fit: dict) -> dict[str, float]:
-    """tau_high from the val distribution of per-frame stream vacuity: the quantile (grid) that
-    maximises val state accuracy of (f), with (e)'s fitted tracking thresholds."""
-    if cfg.gate.tau_high is not None:
-        return {"tau_high": cfg.gate.tau_high, "tau_low": cfg.gate.tau_high * cfg.gate.tau_low_fraction,
-                "fitted_on": "config"}
-    u = np.concatenate([np.concatenate([o["extra"]["frame_u"]["rgb"], o["extra"]["frame_u"]["thermal"]])
-                        for _, o in val])
-    best = {"score": -1.0}
-    for q in (0.5, 0.7, 0.8, 0.9, 0.95, 0.99):
-        tau_high = float(min(np.quantile(u, q), 1.0))
-        gate = {"tau_high": tau_high, "tau_low": tau_high * cfg.gate.tau_low_fraction}
-        vals = []
-        for (s, _), maps in zip(val, val_maps):
-            (frames, _), _, _ = gated_dets(s, maps, cfg, gate)
-            vals.append(_seq_state(frames, s.gt_rgb, track_fit["det_threshold"], track_fit["theta"], cfg)[0])
-        score = float(np.mean(vals)) if vals else 0.0
-        if score > best["score"] + 1e-12:
-            best = {"score": score, "quantile": q, **gate}
-    best["fitted_on"] = "val"
-    return best
-
-
-def fit_temperature_on_val(val: list[tuple[SequenceData, dict]]) -> float:
-    from evids.metrics import fit_temperature
-    from harness.experiments.detection.metrics import detections_matched
-
-    logits, labels = [], []
-    for seq, out in val:
-        frames, decoded = out["dets"]["g_feature_fusion/fused"]
-        for t, (f, d) in enumerate(zip(frames, decoded)):
-            tp = detections_matched(f.boxes, f.scores, seq.gt_rgb[t])
-            logits.append(d["logit"])
-            labels.append(tp.astype(np.float64))
-    z, y = np.concatenate(logits), np.concatenate(labels)
-    return float(fit_temperature(z, y, t_min=0.05, t_max=200.0)) if z.size else 1.0
 
 
 # ------------------------------------------------------------------------------------- evaluate
