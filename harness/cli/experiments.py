@@ -66,12 +66,9 @@ def sweep(
 ) -> None:
     """Degradation sweep (severity grid per modality), conflict study (scheduled conflict programs)
     and gate sweep with realised vs projected CPU time saving."""
-    from harness.experiments.runner import (
-        open_run,
-        stage_conflict,
-        stage_gate,
-        stage_sweep,
-    )
+    from harness.experiments.conflict_study import stage_conflict
+    from harness.experiments.gate_timing import stage_gate
+    from harness.experiments.runner import open_run, stage_sweep
 
     kinds = [k.strip() for k in only.split(",") if k.strip()]
     bad = [k for k in kinds if k not in _STUDIES]

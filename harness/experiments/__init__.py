@@ -17,7 +17,7 @@ __all__ = ["DEMO_CONFIG", "QUICK_CONFIG", "ExperimentConfig", "load_experiment_c
 
 def run_all(cfg: ExperimentConfig, out: Path, progress: bool = True, log=print) -> dict[str, float]:
     """train -> evaluate -> examples -> sweep -> conflict -> gate -> report; returns wall seconds per stage."""
-    from harness.experiments import runner
+    from harness.experiments import conflict_study, gate_timing, runner
     from harness.report import build_report
     from harness.runfolder import mark_stage
 
@@ -37,8 +37,8 @@ def run_all(cfg: ExperimentConfig, out: Path, progress: bool = True, log=print) 
     timed("evaluate", runner.stage_evaluate, ctx)
     timed("examples", runner.stage_examples, ctx)
     timed("sweep", runner.stage_sweep, ctx)
-    timed("conflict", runner.stage_conflict, ctx)
-    timed("gate", runner.stage_gate, ctx)
+    timed("conflict", conflict_study.stage_conflict, ctx)
+    timed("gate", gate_timing.stage_gate, ctx)
     timed("report", build_report, out)
     mark_stage(out, "complete", sum(times.values()), {"stage_seconds": {k: round(v, 2) for k, v in times.items()}})
     return times

@@ -12,7 +12,7 @@ import numpy as np
 import torch
 import yaml
 
-from evids.gating import GateParams, HysteresisGate, sweep_gates
+from evids.gating import GateParams
 from evids.metrics import paired_bootstrap, paired_permutation_test
 from evids.metrics.significance import UNDECIDED, comparison_verdict
 from evids.modalities import INPUT_FIELD, MODALITIES, MODALITY_STREAMS, MODALITY_TABLE, NOISE_STREAMS
@@ -21,7 +21,6 @@ from harness.experiments.conditions import (
     Condition,
     Prediction,
     choose_gate,
-    fuse,
     metrics_of,
     predict_condition,
 )
@@ -34,16 +33,11 @@ from harness.experiments.data import (
     scene_ids_of,
 )
 from harness.experiments.noise import (
-    conflict_clip,
     degrade_clip,
-    program_window,
-    swap_clip,
-    targeted_segments,
 )
 from harness.experiments.pipeline import (
     Models,
     Outputs,
-    encode,
     encode_modality,
     forked_map,
     load_models,
@@ -256,7 +250,7 @@ def _aggregate(per_seed: list[dict]) -> dict:
     return out
 
 
-def _gate_params(ctx: Context) -> tuple[GateParams, dict]:
+def gate_params(ctx: Context) -> tuple[GateParams, dict]:
     if ctx.gate is None:
         seed = ctx.cfg.protocol.noise_seeds[0]
         val = ctx.outputs("standard", seed, "val")
@@ -352,7 +346,7 @@ def stage_evaluate(ctx: Context) -> dict:
     t0 = time.perf_counter()
     cfg = ctx.cfg
     y, cid, scn = ctx.labels(), ctx.clip_ids(), ctx.scene_ids()
-    gate, gate_info = _gate_params(ctx)
+    gate, gate_info = gate_params(ctx)
     conds = [c for c in CONDITIONS if c.variant != "iq" or ctx.has_iq()]
     skipped = [{"condition": c.key, "reason": "dataset has no rf_iq/ captures (I/Q-level noise impossible)"}
                for c in CONDITIONS if c not in conds]
@@ -366,7 +360,7 @@ def stage_evaluate(ctx: Context) -> dict:
     per: dict[str, list[dict]] = {c.key: [] for c in conds}
     correct: dict[str, list[np.ndarray]] = {c.key: [] for c in conds}
     preds0: dict[str, Prediction] = {}
-    results = dict(_map_groups(ctx, groups, (conds, y, cid, gate), "evaluating conditions"))
+    results = dict(map_groups(ctx, groups, (conds, y, cid, gate), "evaluating conditions"))
     for group in groups:                                   # accumulate in job order (deterministic)
         for variant, seed, run, out, items in results[group]:
             ctx.store.outputs[OutputsKey(variant, seed, "test", run)] = out
@@ -442,7 +436,7 @@ def _evaluate_group(group: tuple, extra: tuple) -> tuple[tuple, list]:
     return group, rows
 
 
-def _map_groups(ctx: Context, groups: list, extra: tuple, label: str, job=None):
+def map_groups(ctx: Context, groups: list, extra: tuple, label: str, job=None):
     """(group, result) of ``job(group, extra)`` (default _evaluate_group) for every group, through
     pipeline.forked_map on ``models.train_workers`` processes (each on models.torch_threads
     threads, inheriting the context; results do not depend on the count)."""
@@ -518,178 +512,12 @@ def stage_sweep(ctx: Context) -> dict:
     seeds = cfg.protocol.noise_seeds[: sc.n_seeds or None]
     jobs = [(m, s) for m in MODALITIES for s in sc.severities]
     warm_clean(ctx)
-    results = dict(_map_groups(ctx, jobs, (seeds,), "degradation sweep", job=_sweep_job))
+    results = dict(map_groups(ctx, jobs, (seeds,), "degradation sweep", job=_sweep_job))
     rows = [row for job in jobs for row in results[job]]   # in job order (deterministic)
     write_csv(ctx.run_dir / "sweep.csv", rows)
     write_json(ctx.run_dir / "sweep.json", {"rows": rows, "seeds": seeds})
     mark_stage(ctx.run_dir, "sweep", time.perf_counter() - t0)
     return {"rows": rows}
-
-
-def _majority(alpha: np.ndarray) -> np.ndarray:
-    votes = alpha.argmax(-1)                          # (3, N)
-    return (votes.sum(0) >= 2).astype(np.int64)       # class 1 when >= 2 of 3 vote Background
-
-
-def _rule_preds(ctx: Context, run: int, out: Outputs, cid: np.ndarray) -> dict[str, np.ndarray]:
-    cfg = ctx.cfg
-    preds = {rule: predict_condition(Condition(rule, rule, "conflict", rule), ctx.models[run], out, cid,
-                                     cfg.fusion.c_max, cfg.fusion.construction, None).probs.argmax(1)
-             for rule in FUSION_RULES}
-    preds["majority_vote"] = _majority(out.alpha)
-    return preds
-
-
-def _swap_program(ctx: Context, prog) -> dict:
-    """Realised effect of one twin-swap program on the test split, over every training run."""
-    from degradations.schedule import swap_program
-
-    cfg, cc = ctx.cfg, ctx.cfg.conflict
-    desc, kind, mods = swap_program(prog.name)
-    by_id = {c.clip_id: k for k, c in enumerate(ctx.prep.clips)}
-    want = 0 if kind == "blind" else 1
-    items = [(i, by_id[ctx.prep.clips[i].twin]) for i in ctx.test
-             if ctx.prep.clips[i].label == want and ctx.prep.clips[i].twin in by_id]
-    base = {"program": prog.key, "name": prog.name, "strength": prog.strength, "kind": kind,
-            "modalities": list(mods), "description": desc}
-    if not items:
-        return {**base, "n_targeted": 0, "status": "not run: no test clip of this kind has a twin"}
-    parts, targ, y, cid, scn = [], [], [], [], []
-    for i, j in items:
-        clip, donor = ctx.prep.clips[i], ctx.prep.clips[j]
-        w = program_window(clip.n_segments, cc.onset_fraction, cc.duration_fraction)
-        parts.append(swap_clip(clip, donor, mods, prog.strength, w, ctx.prep.rf_range_db))
-        targ.append(targeted_segments(clip, donor, kind, mods, w))
-        y.append(np.full(clip.n_segments, clip.label))
-        cid.append(np.full(clip.n_segments, clip.clip_id, dtype=object))
-        scn.append(np.full(clip.n_segments, clip.scene, dtype=object))
-    T, y, cid, scn = np.concatenate(targ), np.concatenate(y), np.concatenate(cid), np.concatenate(scn)
-    if not T.any():
-        return {**base, "n_clips": len(items), "n_targeted": 0,
-                "status": "not run: no test segment where the drone clip's sensor observes the drone"}
-    x = (np.concatenate([p.mfcc for p in parts]), np.concatenate([p.video for p in parts]),
-         np.concatenate([p.rf for p in parts]))
-    offsets = np.cumsum([0] + [ctx.prep.clips[i].n_segments for i in ctx.test])
-    pos = {i: k for k, i in enumerate(ctx.test)}
-    rows = np.concatenate([np.arange(offsets[pos[i]], offsets[pos[i] + 1]) for i, _ in items])
-    m_idx = [MODALITIES.index(m) for m in mods]
-    flips, conf, C, FB, acc, dis = [], [], [], [], {}, []
-    dis_acc = {"ds": [], "average": []}
-    where = []
-    runs_c: list[dict[str, np.ndarray]] = []        # per training run: each rule's correctness on T
-    for run in ctx.runs:
-        full = ctx.outputs("clean", 0, run=run)
-        clean = Outputs(full.logit[:, rows], full.alpha[:, rows], full.emb[:, rows])
-        out = clean
-        swapped = encode(ctx.models[run], *x, only=tuple(mods))
-        for m in m_idx:
-            out = out.replace(m, swapped)
-        v_clean = clean.alpha[m_idx].argmax(-1)[:, T]             # (k, n_targeted)
-        v_prog = out.alpha[m_idx].argmax(-1)[:, T]
-        flips.append(float((v_clean != v_prog).mean()))
-        p_prog = out.alpha[m_idx] / out.alpha[m_idx].sum(-1, keepdims=True)
-        conf.append(float(p_prog[..., 1 - want][:, T].mean()))    # probability of the WRONG class
-        ds = fuse("ds", out.alpha, cfg.fusion.c_max, cfg.fusion.construction)
-        C.append(ds.conflict[T])
-        FB.append(ds.fallback[T])
-        preds = _rule_preds(ctx, run, out, cid)
-        for rule, pr in preds.items():
-            acc.setdefault(rule, []).append(float((pr[T] == y[T]).mean()) if T.any() else None)
-        differ = (preds["ds"] != preds["average"]) & T
-        dis.append(float(differ[T].mean()) if T.any() else 0.0)
-        for rule in ("ds", "average"):
-            dis_acc[rule].append(float((preds[rule][differ] == y[differ]).mean()) if differ.any() else None)
-        if run == 0 and differ.any():
-            for k in np.flatnonzero(differ)[:5]:
-                seg = int(k - np.flatnonzero(cid == cid[k])[0])
-                where.append({"clip": str(cid[k]), "segment": seg, "label": int(y[k]),
-                              "ds": int(preds["ds"][k]), "average": int(preds["average"][k]),
-                              "alpha": np.round(out.alpha[:, k], 3).tolist()})
-        runs_c.append({r: (preds[r] == y)[T] for r in ("ds", "average")})
-    Cs = np.concatenate(C)
-    flip = float(np.mean(flips))
-    status = ("inert" if flip < cc.inert_flip_rate else
-              "bites" if flip >= cc.min_flip_rate else "weak (flips fewer than the target share)")
-    ds_c = np.mean([r["ds"] for r in runs_c], axis=0)
-    av_c = np.mean([r["average"] for r in runs_c], axis=0)
-    comp = compare(ctx, f"DS vs average, {prog.key} targeted segments", ds_c, av_c, scn[T],
-                   f"conflict {prog.key}: ds vs average")
-    edges = np.linspace(0.0, 1.0, 21)
-
-    def mean_or_none(v):
-        v = [a for a in v if a is not None]
-        return float(np.mean(v)) if v else None
-
-    return {**base, "n_clips": len(items), "n_targeted": int(T.sum()), "n_segments": len(T),
-            "flip_rate": flip, "flip_rate_std_training": float(np.std(flips)),
-            "wrong_class_probability": float(np.mean(conf)), "status": status,
-            "ds_conflict": {"mean": float(Cs.mean()) if Cs.size else None,
-                            "quantiles": np.quantile(Cs, [0.1, 0.5, 0.9]).tolist() if Cs.size else None,
-                            "hist": np.histogram(Cs, edges)[0].tolist(), "edges": edges.tolist()},
-            "fallback_rate": float(np.concatenate(FB).mean()) if Cs.size else None,
-            "accuracy": {r: mean_or_none(v) for r, v in acc.items()},
-            "ds_average_disagree_rate": float(np.mean(dis)),
-            "ds_average_disagree_accuracy": {r: mean_or_none(v) for r, v in dis_acc.items()},
-            "disagreements": where, "ds_vs_average": comp}
-
-
-def stage_conflict(ctx: Context) -> dict:
-    """Conflict study: twin-swap programs (realised flip rate, wrong-class confidence, DS conflict C,
-    fallback, each rule's accuracy on the targeted segments, where DS and averaging disagree), and
-    any listed legacy programs measured the same way (flip rate of the compromised modality)."""
-    t0 = time.perf_counter()
-    cc = ctx.cfg.conflict
-    progs = list(cc.swaps)
-    warm_clean(ctx)
-    results = dict(_map_groups(ctx, list(range(len(progs))), (progs,), "conflict study", job=_conflict_job))
-    rows = [results[k] for k in range(len(progs))]          # in program order (deterministic)
-    legacy = [_legacy_program(ctx, name) for name in cc.programs]
-    decisive = [r["program"] for r in rows if r.get("ds_average_disagree_rate", 0.0) > 0.0]
-    result = {"programs": rows, "legacy_programs": legacy,
-              "programs_where_ds_and_average_differ": decisive,
-              "all_bite": all(r.get("status") == "bites" for r in rows) if rows else None,
-              "onset_fraction": cc.onset_fraction, "duration_fraction": cc.duration_fraction,
-              "c_max": ctx.cfg.fusion.c_max, "runs": len(ctx.runs)}
-    write_json(ctx.run_dir / "conflict.json", result)
-    flat = [{k: v for k, v in r.items() if not isinstance(v, (dict, list))} for r in rows + legacy]
-    write_csv(ctx.run_dir / "conflict.csv", flat)
-    mark_stage(ctx.run_dir, "conflict", time.perf_counter() - t0)
-    return result
-
-
-def _conflict_job(k: int, extra: tuple) -> tuple[int, dict]:
-    """The realised effect of program ``k`` (in a worker)."""
-    ctx = job_context()
-    (progs,) = extra
-    torch.set_num_threads(ctx.cfg.models.torch_threads)
-    return k, _swap_program(ctx, progs[k])
-
-
-def _legacy_program(ctx: Context, program: str) -> dict:
-    """An older degradation-based program on every test clip (run 0): flip rate of the compromised
-    modality's vote on the segments the program marks compromised."""
-    cfg, cc = ctx.cfg, ctx.cfg.conflict
-    seed = cfg.protocol.noise_seeds[0]
-    degs, flags = [], []
-    for i in ctx.test:
-        clip = ctx.prep.clips[i]
-        dur = clip.n_segments * 0.25
-        d, f = conflict_clip(clip, i, seed, program, cc.onset_fraction * dur, cc.duration_fraction * dur,
-                             cc.severity, ctx.prep.rf_range_db)
-        degs.append(d)
-        flags.append(f)
-    out = encode(ctx.models[0], np.concatenate([d.mfcc for d in degs]), np.concatenate([d.video for d in degs]),
-                 np.concatenate([d.rf for d in degs]))
-    clean = ctx.outputs("clean", 0)
-    res = {"program": program, "kind": "legacy"}
-    for m, modality in enumerate(MODALITIES):
-        comp = np.concatenate([f["compromised"][modality] for f in flags])
-        if comp.any():
-            flip = float((out.alpha[m].argmax(-1)[comp] != clean.alpha[m].argmax(-1)[comp]).mean())
-            res.update({"modality": modality, "n_targeted": int(comp.sum()), "flip_rate": flip,
-                        "status": "inert" if flip < cc.inert_flip_rate else
-                        "bites" if flip >= cc.min_flip_rate else "weak (flips fewer than the target share)"})
-    return res
 
 
 def stage_audit(ctx: Context) -> dict:
@@ -701,86 +529,6 @@ def stage_audit(ctx: Context) -> dict:
     write_json(ctx.run_dir / "audit.json", res)
     mark_stage(ctx.run_dir, "audit", time.perf_counter() - t0)
     return res
-
-
-def _time_stream(ctx: Context, x: dict[str, np.ndarray], cid: np.ndarray, params: GateParams | None,
-                 repeats: int) -> dict:
-    """Stream the test segments one at a time (batch 1, as a live system) and time the encoders."""
-    models = [ctx.models[0].unimodal[(m, "evidential")] for m in MODALITIES]
-    tensors = [torch.from_numpy(np.ascontiguousarray(x[m])) for m in MODALITIES]
-    best = None
-    for _ in range(repeats):
-        gate = HysteresisGate(3, params) if params is not None else None
-        enc_s = np.zeros(3)
-        runs = np.zeros(3, np.int64)
-        t0 = time.perf_counter()
-        with torch.no_grad():
-            for t in range(len(cid)):
-                key = cid[t]
-                plan = gate.plan(key) if gate is not None else [True, True, True]
-                u = [1.0, 1.0, 1.0]
-                alphas = []
-                for m in range(3):
-                    if not plan[m]:
-                        alphas.append(torch.ones(1, 2, dtype=torch.float64))
-                        continue
-                    ts = time.perf_counter()
-                    a, _ = models[m](tensors[m][t:t + 1])
-                    enc_s[m] += time.perf_counter() - ts
-                    runs[m] += 1
-                    u[m] = float(2.0 / a.sum())
-                    alphas.append(a.double())
-                mask = gate.update(u, key) if gate is not None else [True, True, True]
-                used = [a for a, f in zip(alphas, mask) if f]
-                if len(used) > 1:
-                    fuse_in = torch.stack(used)
-                    from evids.fusion import dempster_shafer
-
-                    dempster_shafer(fuse_in, c_max=ctx.cfg.fusion.c_max)
-        total = time.perf_counter() - t0
-        rec = {"total_s": total, "encoder_s": enc_s.tolist(), "encoder_runs": runs.tolist()}
-        if best is None or total < best["total_s"]:
-            best = rec
-    return best
-
-
-def stage_gate(ctx: Context) -> dict:
-    """Gate sweep on the test outputs (standard noise, first seed) and realised vs projected CPU saving."""
-    t0 = time.perf_counter()
-    cfg = ctx.cfg
-    seed = cfg.protocol.noise_seeds[0]
-    out = ctx.outputs("standard", seed)
-    y, cid = ctx.labels(), ctx.clip_ids()
-    g = cfg.gate
-    rows = sweep_gates(torch.from_numpy(out.alpha), y, g.tau_high, g.tau_low, g.n, sequence_ids=cid,
-                       construction=cfg.fusion.construction)
-    params, info = _gate_params(ctx)
-    parts = [degrade_clip(ctx.prep.clips[i], i, seed, **ctx.noise_kwargs("standard")) for i in ctx.test]
-    x = {"audio": np.concatenate([p.mfcc for p in parts]), "video": np.concatenate([p.video for p in parts]),
-         "rf": np.concatenate([p.rf for p in parts])}
-    _time_stream(ctx, {k: v[:8] for k, v in x.items()}, cid[:8], None, 1)        # warm-up
-    ungated = gated = None
-    for _ in range(g.timing_repeats):          # alternate the two so neither profits from running second
-        u_run, g_run = _time_stream(ctx, x, cid, None, 1), _time_stream(ctx, x, cid, params, 1)
-        ungated = u_run if ungated is None or u_run["total_s"] < ungated["total_s"] else ungated
-        gated = g_run if gated is None or g_run["total_s"] < gated["total_s"] else gated
-    n = len(cid)
-    per_seg = np.array(ungated["encoder_s"]) / n
-    skip = 1.0 - np.array(gated["encoder_runs"]) / n
-    projected = float((skip * per_seg).sum() * n / ungated["total_s"])
-    timing = {"params": info, "n_segments": n, "ungated": ungated, "gated": gated,
-              "encoder_ms_per_segment": (per_seg * 1e3).tolist(), "skip_rate_per_modality": skip.tolist(),
-              "projected_saving_fraction": projected,
-              "realised_saving_fraction": float(1.0 - gated["total_s"] / ungated["total_s"]),
-              "torch_threads": torch.get_num_threads(),
-              "note": "batch-1 streaming on this CPU; gated encoders are really not run"}
-    result = {"rows": rows, "seed": seed, "timing": timing,
-              "ungated_accuracy": float((fuse("ds", out.alpha, cfg.fusion.c_max, cfg.fusion.construction)
-                                         .probs.argmax(1) == y).mean())}
-    write_json(ctx.run_dir / "gate.json", result)
-    write_csv(ctx.run_dir / "gate_sweep.csv", rows)
-    mark_stage(ctx.run_dir, "gate", time.perf_counter() - t0)
-    return result
 
 
 def stage_examples(ctx: Context) -> Path:
