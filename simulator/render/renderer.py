@@ -839,6 +839,10 @@ class SequenceRenderer:
         # per camera: (the faces any frame sees, their vertex index)
         self.terrain_seen: dict[str, tuple[TerrainMesh, np.ndarray]] = {}
         self._terrain_emission: dict[str, np.ndarray] = {}
+        # at-sensor LWIR radiance per (target, role, frame, camera) and (transmission, path radiance)
+        # per sight line: the LOWTRAN look-up is ~1 ms of Python per call
+        self._thermal_radiance: dict[tuple[int, str, int, str], float] = {}
+        self._sight_lwir: dict[tuple[int, int, str], tuple[float, float]] = {}
         if scenario.terrain is not None:
             from scenes.terrain import build_terrain
 
@@ -894,14 +898,22 @@ class SequenceRenderer:
         return t * np.asarray(material.rgb_reflectance), (1 - t) * self.sky.airlight_rgb
 
     def thermal_radiance(self, ti: int, role: str, frame: int, which: str) -> float:
-        """At-sensor LWIR band radiance of a part: tau (eps L(T) + (1 - eps) L_refl) + L_path."""
-        track = self.timeline.targets[ti]
-        material = material_for(self._targets[track.name], role)
-        temp_k = float(track.part_temperature_k[role][frame])
-        surface = thermal.surface_radiance(temp_k, material.emissivity, self.sky.reflected_lwir)
-        sight = track.position_m[frame] - self.timeline.cameras[which].origin_m[frame]
-        tau, path_radiance = self.sky.thermal_sky.lwir.along(sight)  # LOWTRAN7 tables (physics.atmosphere)
-        return float(tau * surface + path_radiance)
+        """At-sensor LWIR band radiance of a part: tau (eps L(T) + (1 - eps) L_refl) + L_path
+        (memoised: asked when the batch is placed and again for the labels; the sight line's
+        transmission and path radiance are looked up once per target and frame for all its parts)."""
+        key = (ti, role, frame, which)
+        if key not in self._thermal_radiance:
+            track = self.timeline.targets[ti]
+            material = material_for(self._targets[track.name], role)
+            temp_k = float(track.part_temperature_k[role][frame])
+            surface = thermal.surface_radiance(temp_k, material.emissivity, self.sky.reflected_lwir)
+            sight_key = (ti, frame, which)
+            if sight_key not in self._sight_lwir:
+                sight = track.position_m[frame] - self.timeline.cameras[which].origin_m[frame]
+                self._sight_lwir[sight_key] = self.sky.thermal_sky.lwir.along(sight)  # LOWTRAN7 tables
+            tau, path_radiance = self._sight_lwir[sight_key]
+            self._thermal_radiance[key] = float(tau * surface + path_radiance)
+        return self._thermal_radiance[key]
 
     def terrain_emission(self, which: str) -> np.ndarray:
         """(n_terrain_vertices, 3) float32 emitted radiance of the terrain seen by camera ``which``
