@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import warnings
 import weakref
+from collections.abc import Generator
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from typing import TYPE_CHECKING, Any
@@ -1054,12 +1056,34 @@ class SequenceRenderer:
         return FrameBuffers(rgb_linear=rgb, thermal_radiance=th, mask_rgb=mask_rgb,
                             mask_thermal=mask_th, coverage=coverage if self.labels else None)
 
-    def iter_frames(self):
-        """(frame index, FrameBuffers) for every frame in order, one launch per batch."""
-        for batch in range(self.n_batches):
-            rendered = self.render_batch(batch)
-            for frame in sorted(rendered):
-                yield frame, rendered[frame]
+    def iter_frames(self, ahead: bool = False) -> Generator[tuple[int, Any], None, None]:
+        """(frame index, FrameBuffers) for every frame in order, one launch per batch (typed Any: which
+        buffers are set depends on the cameras and labels asked for).
+
+        ``ahead``: render batch ``b + 1`` on a worker thread while the caller consumes batch ``b``
+        (the camera model, PNG queueing: numpy that overlaps the render's Dr.Jit launches and its
+        own Python). The same frames in the same order (a batch's pixels do not depend on when or
+        on which thread it is rendered); at most two batches are held. Close the iterator (or
+        exhaust it) before ``close()``: closing waits for the batch in flight; a render error is
+        raised in the caller when it reaches that batch.
+        """
+        if not ahead:
+            for batch in range(self.n_batches):
+                yield from sorted(self.render_batch(batch).items())
+            return
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="evids-render") as pool:
+            pending: Future | None = pool.submit(self.render_batch, 0) if self.n_batches else None
+            try:
+                for batch in range(self.n_batches):
+                    if pending is None:
+                        raise RuntimeError("render-ahead lost a batch")
+                    rendered = pending.result()
+                    pending = pool.submit(self.render_batch, batch + 1) if batch + 1 < self.n_batches else None
+                    yield from sorted(rendered.items())
+            finally:
+                if pending is not None:   # the caller stopped early: let the batch in flight finish
+                    pending.cancel()
+                    wait([pending])
 
     def close(self) -> None:
         """Free the Mitsuba scenes now (views point back at the renderer, a cycle Python would
