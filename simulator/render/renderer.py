@@ -307,8 +307,11 @@ def finite_radiance(image: np.ndarray) -> np.ndarray:
     over terrain) replaced by the median of the finite values of its 3x3 neighbourhood (0 when there
     are none), as a film that rejects such samples would show it. Frames without one are returned
     unchanged (the same array, the same bytes)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        if np.isfinite(np.sum(image, dtype=np.float32)):    # NaN and inf reach the sum; all finite then
+            return image
     finite = np.isfinite(image)
-    if finite.all():
+    if finite.all():                                      # finite values whose sum overflowed
         return image
     bad = ~finite.all(axis=-1) if image.ndim == 3 else ~finite
     out = np.where(finite, image, np.float32(np.nan)).astype(np.float32)
@@ -683,8 +686,10 @@ class _View:
             n = (x1 - x0) * (y1 - y0) * k * k
             hits = key[start:start + n].reshape(-1, k * k)
             start += n
-            counts = np.zeros((hits.shape[0], n_keys + 1), np.int32)
-            np.add.at(counts, (np.repeat(np.arange(hits.shape[0]), k * k), hits.ravel()), 1)
+            # hit counts per (pixel, key): a histogram of pixel x (n_keys + 1) + key
+            cell = hits + (np.arange(hits.shape[0]) * (n_keys + 1))[:, None]
+            counts = np.bincount(cell.ravel(), minlength=hits.shape[0] * (n_keys + 1)).astype(np.int32)
+            counts = counts.reshape(hits.shape[0], n_keys + 1)
             out[slot_ti] = (region, counts[:, :n_keys].reshape(y1 - y0, x1 - x0, n_keys))
         return out
 
@@ -1049,7 +1054,7 @@ class SequenceRenderer:
         coverage = {}
         if "rgb" in parts:
             image, coverage["rgb"], mask_rgb = parts["rgb"]
-            rgb = finite_radiance(image * np.float32(self.exposure))
+            rgb = finite_radiance(np.multiply(image, np.float32(self.exposure), out=image))  # image is private
         if "thermal" in parts:
             image, coverage["thermal"], mask_th = parts["thermal"]
             th = finite_radiance(np.ascontiguousarray(image[..., 0]))
