@@ -997,6 +997,7 @@ class SequenceRenderer:
         """One frame's image (ROI mode: the tiles composited in place over ``background``, the
         frame's own copy), coverage records and mask."""
         plan, cam = view.plan, view.camera
+        skies: dict[tuple[int, int], np.ndarray] | None = None
         h, w = cam.height_px, cam.width_px
         if plan.mode == "full":
             image = radiance[slot][: h, : w].copy()
@@ -1004,6 +1005,9 @@ class SequenceRenderer:
             if background is None:
                 raise ValueError("ROI frames are composited over their background: none given")
             image = background
+            if self.labels and view.which == "thermal":   # the sky behind each target, before the tiles cover it
+                skies = {key: image[y0:y1, x0:x1, 0].copy()
+                         for key, ((x0, y0, x1, y1), _) in cover.items() if key[0] == slot}
             for ti in range(plan.tiles_per_frame):
                 if self.boxes[view.which][frame][ti] is None:
                     continue
@@ -1012,10 +1016,14 @@ class SequenceRenderer:
                       + tile.width] = radiance[slot * plan.tiles_per_frame + ti]
         coverage, mask = None, None
         if self.labels:
-            coverage, mask = self._coverage_records(view, frame, slot, cover)
+            coverage, mask = self._coverage_records(view, frame, slot, cover, skies)
         return image, coverage, mask
 
-    def _coverage_records(self, view: _View, frame: int, slot: int, cover: dict) -> tuple[list, np.ndarray]:
+    def _coverage_records(self, view: _View, frame: int, slot: int, cover: dict,
+                          skies: dict[tuple[int, int], np.ndarray] | None = None) -> tuple[list, np.ndarray]:
+        """Per target: coverage record (thermal: with its radiance and the sky behind it, taken from
+        ``skies`` (the ROI background's pixels under each coverage region) when given, else evaluated
+        for the region) and the frame's id mask. A pixel's sky does not depend on the launch."""
         cam = view.camera
         k2 = COVERAGE_SUBSAMPLES ** 2
         mask = np.zeros((cam.height_px, cam.width_px), np.uint16)
@@ -1039,7 +1047,7 @@ class SequenceRenderer:
             if view.which == "thermal":
                 record.role_radiance = {r: self.thermal_radiance(ti, r, frame, "thermal") for r in role_px}
                 x0, y0, x1, y1 = region
-                sky = view.sky(frame, region)[..., 0]
+                sky = skies[(slot, ti)] if skies is not None else view.sky(frame, region)[..., 0]
                 record.sky_radiance = float(np.sum(sky * cov) / cov.sum())
             records.append(record)
             x0, y0, x1, y1 = region
