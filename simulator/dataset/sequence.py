@@ -129,12 +129,14 @@ class _FrameWriter:
 def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: int | None = None,
                     formats: tuple[str, ...] = ("native",), preview: bool = False, progress: bool = True,
                     times: PassTimes | None = None, writer_threads: int = WRITER_THREADS, overwrite: bool = False,
-                    notes: list[str] | None = None) -> dict[str, Path]:
+                    notes: list[str] | None = None, render_ahead: bool = True) -> dict[str, Path]:
     """Render ``scenario`` with ``seed`` into ``out_dir``; returns the written paths by kind.
 
     native: ``out_dir/<name>/`` (docs/NATIVE_FORMAT.md); antiuav: ``out_dir/antiuav/<name>/`` and
     ``<name>_visible/``; preview: ``out_dir/<name>_preview.png``. Nothing is left half-written.
-    Frames are rendered in batches (simulator.render.plan) and written by worker threads.
+    Frames are rendered in batches (simulator.render.plan), the next batch on a worker thread while
+    the camera model records this one (``render_ahead``; the same bytes either way), and written by
+    worker threads.
     Existing outputs are replaced only with ``overwrite`` and only if evids wrote them. A camera
     pose that sees nothing is refused before rendering; plausibility findings (a target never in
     view, clipped thermal counts) are appended to ``notes``.
@@ -177,7 +179,7 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
             bar.start()
         writer = _FrameWriter(tmp, writer_threads)
         # the next batch renders on a worker thread while this one goes through the camera model
-        rendered = renderer.iter_frames(ahead=True)
+        rendered = renderer.iter_frames(ahead=render_ahead)
         try:
             t0 = time.perf_counter()
             for i, buffers in rendered:
