@@ -579,10 +579,11 @@ class _View:
         return img.reshape(n_tiles, plan.tile_height, plan.tile_width, 3)
 
     def sky(self, frame: int, region: tuple[int, int, int, int] | None = None) -> np.ndarray:
-        """(H, W, 3) sky radiance at pixel centres (ROI mode's background; the sky behind a target
-        for label contrast), cached while the camera does not turn. Pixels smaller than a sky
-        texel make this the pixel's mean to well below the 8-bit step (tested against a full render).
-        Only a static camera's sky is cached (a turning camera's is composited over in place)."""
+        """(H, W, 3) sky radiance at pixel centres (thermal: (H, W, 1)) (ROI mode's background; the sky
+        behind a target for label contrast), cached while the camera does not turn. Pixels smaller
+        than a sky texel make this the pixel's mean to well below the 8-bit step (tested against a
+        full render). Only a static camera's sky is cached (a turning camera's is composited over in
+        place)."""
         cam = self.camera
         pose = (cam.forward[frame].tobytes(), cam.up[frame].tobytes())
         if self._sky_cache is not None and self._sky_cache[0] == pose:
@@ -597,7 +598,7 @@ class _View:
         return image
 
     def backgrounds(self, frames: list[int]) -> list[np.ndarray]:
-        """Each frame's whole (H, W, 3) ROI background, private to the caller (it composites the
+        """Each frame's whole (H, W, 3) (thermal: (H, W, 1)) ROI background, private to the caller (it composites the
         tiles over it): a copy of the cached sky for a camera that does not turn, else evaluated for
         several frames per launch (each pixel's value does not depend on the launch it is in)."""
         if self.static:
@@ -611,7 +612,9 @@ class _View:
 
     def _background(self, frames: list[int], x0: int, y0: int, h: int, w: int) -> np.ndarray:
         """(len(frames), h, w, 3) background at the centres of pixels [y0:y0+h, x0:x0+w] of each
-        frame: the sky, or with terrain the background slot's sky and terrain; one launch."""
+        frame: the sky, or with terrain the background slot's sky and terrain; one launch. Thermal:
+        (len(frames), h, w, 1), the first channel only (the LWIR map's three are equal; the frame
+        keeps only the first)."""
         dr, mi = self.dr, self.mi
         n = h * w
         idx = dr.arange(mi.UInt32, n * len(frames))
@@ -624,6 +627,8 @@ class _View:
             value = self._terrain_background(which, x, y, frames)
         else:
             value = self._sky_pixels(which, x, y, frames)
+        if self.which == "thermal":
+            return np.array(value.x, dtype=np.float32).reshape(len(frames), h, w, 1)
         return np.array(value, dtype=np.float32).T.reshape(len(frames), h, w, 3)
 
     def _sky_pixels(self, which, x, y, frames: list[int]):
@@ -1013,7 +1018,7 @@ class SequenceRenderer:
                     continue
                 tile = tiles[(slot, ti)]
                 image[tile.y0:tile.y0 + tile.height, tile.x0:tile.x0
-                      + tile.width] = radiance[slot * plan.tiles_per_frame + ti]
+                      + tile.width] = radiance[slot * plan.tiles_per_frame + ti][..., :image.shape[-1]]
         coverage, mask = None, None
         if self.labels:
             coverage, mask = self._coverage_records(view, frame, slot, cover, skies)
