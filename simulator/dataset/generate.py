@@ -158,6 +158,7 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
         cpu0 = time.process_time()
         # a worker limited to N threads also writes its PNGs on N threads (no oversubscription)
         writer_threads = WRITER_THREADS if threads is None else max(1, int(threads))
+        render_ahead = threads is None or int(threads) > 1    # likewise: no render thread beside a 1-thread worker
         from simulator.dataset.sequence import PassTimes
 
         stages = PassTimes()
@@ -165,7 +166,8 @@ def render_task(task: dict[str, Any], sequences_dir: str, threads: int | None = 
         notes: list[str] = []
         written = render_sequence(scenario, task["seed"], Path(sequences_dir), n_frames=task["n_frames"],
                                   progress=False,
-                                  times=stages, overwrite=True, notes=notes, writer_threads=writer_threads)
+                                  times=stages, overwrite=True, notes=notes, writer_threads=writer_threads,
+                                  render_ahead=render_ahead)
         stages.seconds["setup + metadata (rest)"] = time.perf_counter() - wall0 - sum(stages.seconds.values())
         return {"name": task["name"], "hash": sequence_hash(written["native"]), "cpu_s": time.process_time() - cpu0,
                 "peak_rss_mb": _peak_rss_mb(), "pid": os.getpid(), "stage_s": stages.seconds,

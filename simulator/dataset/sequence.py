@@ -129,12 +129,14 @@ class _FrameWriter:
 def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: int | None = None,
                     formats: tuple[str, ...] = ("native",), preview: bool = False, progress: bool = True,
                     times: PassTimes | None = None, writer_threads: int = WRITER_THREADS, overwrite: bool = False,
-                    notes: list[str] | None = None) -> dict[str, Path]:
+                    notes: list[str] | None = None, render_ahead: bool = True) -> dict[str, Path]:
     """Render ``scenario`` with ``seed`` into ``out_dir``; returns the written paths by kind.
 
     native: ``out_dir/<name>/`` (docs/NATIVE_FORMAT.md); antiuav: ``out_dir/antiuav/<name>/`` and
     ``<name>_visible/``; preview: ``out_dir/<name>_preview.png``. Nothing is left half-written.
-    Frames are rendered in batches (simulator.render.plan) and written by worker threads.
+    Frames are rendered in batches (simulator.render.plan), the next batch on a worker thread while
+    the camera model records this one (``render_ahead``; the same bytes either way), and written by
+    worker threads.
     Existing outputs are replaced only with ``overwrite`` and only if evids wrote them. A camera
     pose that sees nothing is refused before rendering; plausibility findings (a target never in
     view, clipped thermal counts) are appended to ``notes``.
@@ -176,10 +178,12 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
             task = bar.add_task("frames", total=timeline.n_frames)
             bar.start()
         writer = _FrameWriter(tmp, writer_threads)
+        # the next batch renders on a worker thread while this one goes through the camera model
+        rendered = renderer.iter_frames(ahead=render_ahead)
         try:
             t0 = time.perf_counter()
-            for i, buffers in renderer.iter_frames():
-                t0 = times.add("render (rgb + thermal + coverage)", t0)
+            for i, buffers in rendered:
+                t0 = times.add("wait for the render (rgb + thermal + coverage, one batch ahead)", t0)
                 # the camera model keeps state (bolometer lag): it runs here, in frame order
                 recorded = camera.record_buffers(i, buffers)   # the ideal kelvin only for the ideal sensor
                 clipped_px += int(np.count_nonzero(np.asarray(recorded.thermal_counts) >= counts_max))
@@ -202,6 +206,7 @@ def render_sequence(scenario: Scenario, seed: int, out_dir: Path, *, n_frames: i
             t0 = time.perf_counter()
         finally:
             try:
+                rendered.close()   # waits for a batch still rendering
                 writer.finish()
             finally:
                 renderer_meta = {"exposure": renderer.exposure, "variant": renderer.mi.variant(),
@@ -274,9 +279,11 @@ def render_rgb_video(scenario: Scenario, seed: int, n_frames: int, width_px: int
     layout_timeline = None if layout is None else build_timeline(small(layout), seed, n_frames)
     renderer = SequenceRenderer(timeline, cameras=("rgb",), labels=False, layout=layout_timeline)
     out = np.empty((timeline.n_frames, height_px, width_px, 3), np.uint8)
+    rendered = renderer.iter_frames(ahead=True)   # the next batch renders while this one is encoded
     try:
-        for i, buffers in renderer.iter_frames():
+        for i, buffers in rendered:
             out[i] = rgb_to_srgb8(buffers.rgb_linear)
     finally:
+        rendered.close()
         renderer.close()
     return out

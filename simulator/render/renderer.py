@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import warnings
 import weakref
+from collections.abc import Generator
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from typing import TYPE_CHECKING, Any
@@ -305,8 +307,11 @@ def finite_radiance(image: np.ndarray) -> np.ndarray:
     over terrain) replaced by the median of the finite values of its 3x3 neighbourhood (0 when there
     are none), as a film that rejects such samples would show it. Frames without one are returned
     unchanged (the same array, the same bytes)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        if np.isfinite(np.sum(image, dtype=np.float32)):    # NaN and inf reach the sum; all finite then
+            return image
     finite = np.isfinite(image)
-    if finite.all():
+    if finite.all():                                      # finite values whose sum overflowed
         return image
     bad = ~finite.all(axis=-1) if image.ndim == 3 else ~finite
     out = np.where(finite, image, np.float32(np.nan)).astype(np.float32)
@@ -574,10 +579,11 @@ class _View:
         return img.reshape(n_tiles, plan.tile_height, plan.tile_width, 3)
 
     def sky(self, frame: int, region: tuple[int, int, int, int] | None = None) -> np.ndarray:
-        """(H, W, 3) sky radiance at pixel centres (ROI mode's background; the sky behind a target
-        for label contrast), cached while the camera does not turn. Pixels smaller than a sky
-        texel make this the pixel's mean to well below the 8-bit step (tested against a full render).
-        Only a static camera's sky is cached (a turning camera's is composited over in place)."""
+        """(H, W, 3) sky radiance at pixel centres (thermal: (H, W, 1)) (ROI mode's background; the sky
+        behind a target for label contrast), cached while the camera does not turn. Pixels smaller
+        than a sky texel make this the pixel's mean to well below the 8-bit step (tested against a
+        full render). Only a static camera's sky is cached (a turning camera's is composited over in
+        place)."""
         cam = self.camera
         pose = (cam.forward[frame].tobytes(), cam.up[frame].tobytes())
         if self._sky_cache is not None and self._sky_cache[0] == pose:
@@ -592,7 +598,7 @@ class _View:
         return image
 
     def backgrounds(self, frames: list[int]) -> list[np.ndarray]:
-        """Each frame's whole (H, W, 3) ROI background, private to the caller (it composites the
+        """Each frame's whole (H, W, 3) (thermal: (H, W, 1)) ROI background, private to the caller (it composites the
         tiles over it): a copy of the cached sky for a camera that does not turn, else evaluated for
         several frames per launch (each pixel's value does not depend on the launch it is in)."""
         if self.static:
@@ -606,7 +612,9 @@ class _View:
 
     def _background(self, frames: list[int], x0: int, y0: int, h: int, w: int) -> np.ndarray:
         """(len(frames), h, w, 3) background at the centres of pixels [y0:y0+h, x0:x0+w] of each
-        frame: the sky, or with terrain the background slot's sky and terrain; one launch."""
+        frame: the sky, or with terrain the background slot's sky and terrain; one launch. Thermal:
+        (len(frames), h, w, 1), the first channel only (the LWIR map's three are equal; the frame
+        keeps only the first)."""
         dr, mi = self.dr, self.mi
         n = h * w
         idx = dr.arange(mi.UInt32, n * len(frames))
@@ -619,6 +627,8 @@ class _View:
             value = self._terrain_background(which, x, y, frames)
         else:
             value = self._sky_pixels(which, x, y, frames)
+        if self.which == "thermal":
+            return np.array(value.x, dtype=np.float32).reshape(len(frames), h, w, 1)
         return np.array(value, dtype=np.float32).T.reshape(len(frames), h, w, 3)
 
     def _sky_pixels(self, which, x, y, frames: list[int]):
@@ -681,8 +691,10 @@ class _View:
             n = (x1 - x0) * (y1 - y0) * k * k
             hits = key[start:start + n].reshape(-1, k * k)
             start += n
-            counts = np.zeros((hits.shape[0], n_keys + 1), np.int32)
-            np.add.at(counts, (np.repeat(np.arange(hits.shape[0]), k * k), hits.ravel()), 1)
+            # hit counts per (pixel, key): a histogram of pixel x (n_keys + 1) + key
+            cell = hits + (np.arange(hits.shape[0]) * (n_keys + 1))[:, None]
+            counts = np.bincount(cell.ravel(), minlength=hits.shape[0] * (n_keys + 1)).astype(np.int32)
+            counts = counts.reshape(hits.shape[0], n_keys + 1)
             out[slot_ti] = (region, counts[:, :n_keys].reshape(y1 - y0, x1 - x0, n_keys))
         return out
 
@@ -839,6 +851,10 @@ class SequenceRenderer:
         # per camera: (the faces any frame sees, their vertex index)
         self.terrain_seen: dict[str, tuple[TerrainMesh, np.ndarray]] = {}
         self._terrain_emission: dict[str, np.ndarray] = {}
+        # at-sensor LWIR radiance per (target, role, frame, camera) and (transmission, path radiance)
+        # per sight line: the LOWTRAN look-up is ~1 ms of Python per call
+        self._thermal_radiance: dict[tuple[int, str, int, str], float] = {}
+        self._sight_lwir: dict[tuple[int, int, str], tuple[float, float]] = {}
         if scenario.terrain is not None:
             from scenes.terrain import build_terrain
 
@@ -894,14 +910,22 @@ class SequenceRenderer:
         return t * np.asarray(material.rgb_reflectance), (1 - t) * self.sky.airlight_rgb
 
     def thermal_radiance(self, ti: int, role: str, frame: int, which: str) -> float:
-        """At-sensor LWIR band radiance of a part: tau (eps L(T) + (1 - eps) L_refl) + L_path."""
-        track = self.timeline.targets[ti]
-        material = material_for(self._targets[track.name], role)
-        temp_k = float(track.part_temperature_k[role][frame])
-        surface = thermal.surface_radiance(temp_k, material.emissivity, self.sky.reflected_lwir)
-        sight = track.position_m[frame] - self.timeline.cameras[which].origin_m[frame]
-        tau, path_radiance = self.sky.thermal_sky.lwir.along(sight)  # LOWTRAN7 tables (physics.atmosphere)
-        return float(tau * surface + path_radiance)
+        """At-sensor LWIR band radiance of a part: tau (eps L(T) + (1 - eps) L_refl) + L_path
+        (memoised: asked when the batch is placed and again for the labels; the sight line's
+        transmission and path radiance are looked up once per target and frame for all its parts)."""
+        key = (ti, role, frame, which)
+        if key not in self._thermal_radiance:
+            track = self.timeline.targets[ti]
+            material = material_for(self._targets[track.name], role)
+            temp_k = float(track.part_temperature_k[role][frame])
+            surface = thermal.surface_radiance(temp_k, material.emissivity, self.sky.reflected_lwir)
+            sight_key = (ti, frame, which)
+            if sight_key not in self._sight_lwir:
+                sight = track.position_m[frame] - self.timeline.cameras[which].origin_m[frame]
+                self._sight_lwir[sight_key] = self.sky.thermal_sky.lwir.along(sight)  # LOWTRAN7 tables
+            tau, path_radiance = self._sight_lwir[sight_key]
+            self._thermal_radiance[key] = float(tau * surface + path_radiance)
+        return self._thermal_radiance[key]
 
     def terrain_emission(self, which: str) -> np.ndarray:
         """(n_terrain_vertices, 3) float32 emitted radiance of the terrain seen by camera ``which``
@@ -978,6 +1002,7 @@ class SequenceRenderer:
         """One frame's image (ROI mode: the tiles composited in place over ``background``, the
         frame's own copy), coverage records and mask."""
         plan, cam = view.plan, view.camera
+        skies: dict[tuple[int, int], np.ndarray] | None = None
         h, w = cam.height_px, cam.width_px
         if plan.mode == "full":
             image = radiance[slot][: h, : w].copy()
@@ -985,18 +1010,25 @@ class SequenceRenderer:
             if background is None:
                 raise ValueError("ROI frames are composited over their background: none given")
             image = background
+            if self.labels and view.which == "thermal":   # the sky behind each target, before the tiles cover it
+                skies = {key: image[y0:y1, x0:x1, 0].copy()
+                         for key, ((x0, y0, x1, y1), _) in cover.items() if key[0] == slot}
             for ti in range(plan.tiles_per_frame):
                 if self.boxes[view.which][frame][ti] is None:
                     continue
                 tile = tiles[(slot, ti)]
                 image[tile.y0:tile.y0 + tile.height, tile.x0:tile.x0
-                      + tile.width] = radiance[slot * plan.tiles_per_frame + ti]
+                      + tile.width] = radiance[slot * plan.tiles_per_frame + ti][..., :image.shape[-1]]
         coverage, mask = None, None
         if self.labels:
-            coverage, mask = self._coverage_records(view, frame, slot, cover)
+            coverage, mask = self._coverage_records(view, frame, slot, cover, skies)
         return image, coverage, mask
 
-    def _coverage_records(self, view: _View, frame: int, slot: int, cover: dict) -> tuple[list, np.ndarray]:
+    def _coverage_records(self, view: _View, frame: int, slot: int, cover: dict,
+                          skies: dict[tuple[int, int], np.ndarray] | None = None) -> tuple[list, np.ndarray]:
+        """Per target: coverage record (thermal: with its radiance and the sky behind it, taken from
+        ``skies`` (the ROI background's pixels under each coverage region) when given, else evaluated
+        for the region) and the frame's id mask. A pixel's sky does not depend on the launch."""
         cam = view.camera
         k2 = COVERAGE_SUBSAMPLES ** 2
         mask = np.zeros((cam.height_px, cam.width_px), np.uint16)
@@ -1020,7 +1052,7 @@ class SequenceRenderer:
             if view.which == "thermal":
                 record.role_radiance = {r: self.thermal_radiance(ti, r, frame, "thermal") for r in role_px}
                 x0, y0, x1, y1 = region
-                sky = view.sky(frame, region)[..., 0]
+                sky = skies[(slot, ti)] if skies is not None else view.sky(frame, region)[..., 0]
                 record.sky_radiance = float(np.sum(sky * cov) / cov.sum())
             records.append(record)
             x0, y0, x1, y1 = region
@@ -1035,19 +1067,41 @@ class SequenceRenderer:
         coverage = {}
         if "rgb" in parts:
             image, coverage["rgb"], mask_rgb = parts["rgb"]
-            rgb = finite_radiance(image * np.float32(self.exposure))
+            rgb = finite_radiance(np.multiply(image, np.float32(self.exposure), out=image))  # image is private
         if "thermal" in parts:
             image, coverage["thermal"], mask_th = parts["thermal"]
             th = finite_radiance(np.ascontiguousarray(image[..., 0]))
         return FrameBuffers(rgb_linear=rgb, thermal_radiance=th, mask_rgb=mask_rgb,
                             mask_thermal=mask_th, coverage=coverage if self.labels else None)
 
-    def iter_frames(self):
-        """(frame index, FrameBuffers) for every frame in order, one launch per batch."""
-        for batch in range(self.n_batches):
-            rendered = self.render_batch(batch)
-            for frame in sorted(rendered):
-                yield frame, rendered[frame]
+    def iter_frames(self, ahead: bool = False) -> Generator[tuple[int, Any], None, None]:
+        """(frame index, FrameBuffers) for every frame in order, one launch per batch (typed Any: which
+        buffers are set depends on the cameras and labels asked for).
+
+        ``ahead``: render batch ``b + 1`` on a worker thread while the caller consumes batch ``b``
+        (the camera model, PNG queueing: numpy that overlaps the render's Dr.Jit launches and its
+        own Python). The same frames in the same order (a batch's pixels do not depend on when or
+        on which thread it is rendered); at most two batches are held. Close the iterator (or
+        exhaust it) before ``close()``: closing waits for the batch in flight; a render error is
+        raised in the caller when it reaches that batch.
+        """
+        if not ahead:
+            for batch in range(self.n_batches):
+                yield from sorted(self.render_batch(batch).items())
+            return
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="evids-render") as pool:
+            pending: Future | None = pool.submit(self.render_batch, 0) if self.n_batches else None
+            try:
+                for batch in range(self.n_batches):
+                    if pending is None:
+                        raise RuntimeError("render-ahead lost a batch")
+                    rendered = pending.result()
+                    pending = pool.submit(self.render_batch, batch + 1) if batch + 1 < self.n_batches else None
+                    yield from sorted(rendered.items())
+            finally:
+                if pending is not None:   # the caller stopped early: let the batch in flight finish
+                    pending.cancel()
+                    wait([pending])
 
     def close(self) -> None:
         """Free the Mitsuba scenes now (views point back at the renderer, a cycle Python would

@@ -221,3 +221,40 @@ def test_the_animated_asset_is_shared_between_sequences_and_read_only(swarm):
     faces = a.faces(a.roles[0])
     with pytest.raises(ValueError):
         faces[0, 0] = 0
+
+
+def test_rendering_one_batch_ahead_gives_the_same_frames_in_order_and_leaves_no_thread(swarm):
+    import threading
+
+    plain = [(i, fb) for i, fb in SequenceRenderer(swarm).iter_frames()]
+    ahead = [(i, fb) for i, fb in SequenceRenderer(swarm).iter_frames(ahead=True)]
+    assert [i for i, _ in ahead] == list(range(swarm.n_frames)) == [i for i, _ in plain]
+    for (_, a), (_, b) in zip(plain, ahead):
+        for name in ("rgb_linear", "thermal_radiance", "mask_rgb", "mask_thermal"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    renderer = SequenceRenderer(swarm)
+    frames = renderer.iter_frames(ahead=True)
+    next(frames)          # batch 1 is now rendering on the worker
+    frames.close()        # waits for it and joins the worker
+    renderer.close()
+    assert not [t for t in threading.enumerate() if t.name.startswith("evids-render")]
+
+
+def test_a_render_error_one_batch_ahead_reaches_the_caller_at_that_batch(swarm, monkeypatch):
+    import threading
+
+    renderer = SequenceRenderer(swarm)
+    render_batch = renderer.render_batch
+
+    def failing(batch, only=None):
+        if batch == 1:
+            raise RuntimeError("launch failed")
+        return render_batch(batch, only)
+
+    monkeypatch.setattr(renderer, "render_batch", failing)
+    seen = []
+    with pytest.raises(RuntimeError, match="launch failed"):
+        for i, _ in renderer.iter_frames(ahead=True):
+            seen.append(i)
+    assert seen == list(range(renderer.batch_frames))   # every frame of batch 0, then the error
+    assert not [t for t in threading.enumerate() if t.name.startswith("evids-render")]
