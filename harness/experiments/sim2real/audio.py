@@ -308,9 +308,10 @@ def _config_model():
         helicopter_rpm: Span = (330.0, 420.0)
         helicopter_diameter_m: Span = (10.0, 16.0)
         rotor_noise: dict[str, Span] = Field(
-            default_factory=lambda: {"broadband_low_hz": (30.0, 120.0)},
-            description="drone rotor-noise spans replacing those of acoustics.ROTOR_NOISE_RANGES (the sim2real fit; "
-                        "docs/SIM2REAL_AUDIO.md, fourth pass)")
+            default_factory=dict,
+            description="drone rotor-noise spans replacing those of acoustics.ROTOR_NOISE_RANGES, e.g. "
+                        "{broadband_low_hz: [30, 120]}; none by default (docs/SIM2REAL_AUDIO.md, fourth pass: the "
+                        "lower broadband edge adds 4 drone statistics but raises the LR's false alarms)")
         helicopter: dict[str, Span] = Field(
             default_factory=lambda: {"turbine_hz": (7500.0, 11500.0), "broadband_tilt_db": (-9.0, -7.0),
                                      "tip_noise_db": (-16.0, -6.0)},
@@ -319,11 +320,11 @@ def _config_model():
         ambience: AmbienceDistribution = Field(default_factory=AmbienceDistribution)
         recorder: bool = Field(default=True, description="pass the mix through the recording chain")
         microphone: RecorderConfig = Field(
-            default_factory=lambda: RecorderConfig(agc_target_dbfs=(-28.0, -20.0), presence_db=(0.0, 0.0)),
+            default_factory=lambda: RecorderConfig(agc_target_dbfs=(-28.0, -20.0), presence_hz=(4000.0, 10000.0)),
             description="the recording chain of the Svanström laptop recorder: the generic RecorderConfig with the "
                         "AGC target fitted to the calibration half (drones -24.8, helicopters -20.7 dBFS median) "
-                        "and no presence lift (all three classes' 1-5 kHz shares sat over the calibration IQR "
-                        "with the generic 0-5 dB lift)")
+                        "and the capsule's 0-5 dB presence lift centred at 4-10 kHz instead of 2-6 kHz (all three "
+                        "classes' 1-5 kHz shares sat 0.4-4 dB over the calibration IQR with the generic lift)")
         n_per_class: int = Field(default=20, ge=1, le=1000)
         quick_n_per_class: int = Field(default=2, ge=1, le=1000)
 
