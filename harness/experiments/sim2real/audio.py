@@ -299,9 +299,7 @@ def _config_model():
                                           description="range spans, one picked uniformly per clip")
         drone_speed_mps: Span = (0.0, 10.0)
         elevation_deg: Span = (3.0, 45.0)
-        helicopter_range_m: Span = Field(default=(40.0, 200.0), description=(
-            "log-uniform; 50-300 m until the fourth pass: the calibration helicopters' 10-12.5 kHz share (3-7 dB "
-            "over the synthetic one) needs less air absorption (docs/SIM2REAL_AUDIO.md)"))
+        helicopter_range_m: Span = (50.0, 300.0)
         helicopter_height_m: Span = (30.0, 250.0)
         helicopter_speed_mps: Span = (0.0, 60.0)
         helicopter_blades: list[int] = Field(default=[2, 3, 3, 4, 4], min_length=1)
