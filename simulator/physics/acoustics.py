@@ -75,9 +75,28 @@ ROTOR_NOISE_RANGES = {
 }
 
 
-def draw_rotor_noise(rng: np.random.Generator) -> RotorNoise:
-    """Rotor-noise parameters drawn from ``ROTOR_NOISE_RANGES`` (domain randomisation, per drone)."""
-    r = ROTOR_NOISE_RANGES
+def merged_ranges(base: dict, overrides: dict | None, field_name: str) -> dict:
+    """``base`` ranges with ``overrides`` applied: only (low, high) spans of existing keys can be
+    replaced, low <= high; a bad entry raises a ValueError naming ``field_name.key``. The draws keep
+    their order, so replacing a span moves only the values drawn from it."""
+    if not overrides:
+        return base
+    out = dict(base)
+    for key, span in overrides.items():
+        if key not in base or len(base[key]) != 2 or isinstance(base[key][0], int) and isinstance(base[key][1], int):
+            spans = sorted(k for k, v in base.items() if len(v) == 2 and not all(isinstance(x, int) for x in v))
+            raise ValueError(f"{field_name}.{key}: not a drawn span; expected one of {spans}")
+        lo, hi = (float(x) for x in span) if len(span) == 2 else (np.nan, np.nan)
+        if not (np.isfinite(lo) and np.isfinite(hi)) or lo > hi:
+            raise ValueError(f"{field_name}.{key}: need (low, high) with low <= high, got {tuple(span)}")
+        out[key] = (lo, hi)
+    return out
+
+
+def draw_rotor_noise(rng: np.random.Generator, ranges: dict | None = None) -> RotorNoise:
+    """Rotor-noise parameters drawn from ``ROTOR_NOISE_RANGES`` (domain randomisation, per drone);
+    ``ranges`` replaces some of its spans (:func:`merged_ranges`; same draws in the same order)."""
+    r = merged_ranges(ROTOR_NOISE_RANGES, ranges, "rotor_noise")
 
     def u(name: str) -> float:
         return float(rng.uniform(r[name][0], r[name][1]))
@@ -630,7 +649,8 @@ def _periodic_pulses(phase: np.ndarray, width: float, jitter: np.ndarray | None 
 
 
 def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.random.Generator, *,
-                         main_rpm: np.ndarray | float | None = None, main_blades: int | None = None) -> np.ndarray:
+                         main_rpm: np.ndarray | float | None = None, main_blades: int | None = None,
+                         ranges: dict | None = None) -> np.ndarray:
     """Pressure at 1 m of a helicopter (emission clock through ``retarded``), parts drawn from
     ``HELICOPTER_RANGES``.
 
@@ -641,8 +661,9 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
     envelope at the BPF; thickness/loading thump (2-6 ms pulses at the BPF, per-pass
     jitter); blade slap (0.15-0.6 ms pulses); tail-rotor lines k x its BPF (k^-1); turbine: 1-3
     wandering compressor tones at 6-12 kHz and 1-16 kHz noise. The sum is scaled to HELICOPTER_DB_1M.
+    ``ranges`` replaces some (low, high) spans of ``HELICOPTER_RANGES`` (:func:`merged_ranges`).
     """
-    r = HELICOPTER_RANGES
+    r = merged_ranges(HELICOPTER_RANGES, ranges, "helicopter")
     u = lambda name: float(rng.uniform(r[name][0], r[name][1]))  # noqa: E731
     drawn_rpm, drawn_blades = float(rng.uniform(*HELICOPTER_MAIN_RPM)), int(rng.choice(r["main_blades"]))
     blades = drawn_blades if main_blades is None else int(main_blades)   # drawn anyway: later draws stay put
@@ -711,14 +732,17 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
                       sample_rate_hz: float, air_temperature_k: float, relative_humidity: float,
                       rng: np.random.Generator, wingbeat_hz: float = 4.0, *, ground_factor: float | None = None,
                       sound_power_db: float | None = None, directivity: bool = True,
-                      rotor_noise: RotorNoise | None = None) -> tuple[np.ndarray, np.ndarray]:
+                      rotor_noise: RotorNoise | None = None, rotor_noise_ranges: dict | None = None,
+                      helicopter_ranges: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Received pressure (Pa) of one ``TargetTrack`` at the microphone, and its range per sample.
 
     Drones radiate their hover sound power ``sound_power_db`` (L_WA; default :func:`sound_power_dba`
     of kind and size) with the rotor directivity about the body's up axis; ``ground_factor`` (ISO
     9613-2 G, None = free field) adds the ground effect with heights above z = 0. ``rotor_noise``
     None draws the open rotor-noise parameters from ``rng`` (:func:`draw_rotor_noise`); pass
-    ``LEGACY_ROTOR_NOISE`` for the clean pre-issue-24 rotor model. A ``kind`` "helicopter" track
+    ``LEGACY_ROTOR_NOISE`` for the clean pre-issue-24 rotor model; ``rotor_noise_ranges`` and
+    ``helicopter_ranges`` replace spans of ``ROTOR_NOISE_RANGES`` / ``HELICOPTER_RANGES`` (None: the
+    module's ranges, byte-identical to before they existed). A ``kind`` "helicopter" track
     (built by hand: the scenario schema has no helicopter target yet) uses :func:`helicopter_signature`.
     """
     from simulator.physics.timeline import rotor_hover_rpm
@@ -735,7 +759,7 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
     samples = np.arange(n_samples)
     fluctuation = None
     if track.kind in DRONE_KINDS:
-        noise = draw_rotor_noise(rng) if rotor_noise is None else rotor_noise
+        noise = draw_rotor_noise(rng, rotor_noise_ranges) if rotor_noise is None else rotor_noise
         rpm_frames = np.asarray(track.rotor_rpm, dtype=np.float64)
         _check_nonnegative("rotor_rpm", rpm_frames)
         rpm = np.stack([np.interp(ret.tau_s, frame_times_s, rpm_frames[:, r]) for r in range(rpm_frames.shape[1])])
@@ -758,7 +782,8 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
         rpm_frames = np.asarray(track.rotor_rpm, dtype=np.float64).reshape(len(frame_times_s), -1)
         main_rpm = np.interp(ret.tau_s, frame_times_s, rpm_frames[:, 0]) if rpm_frames.size else None
         src = helicopter_signature(ret, sample_rate_hz, rng, main_rpm=main_rpm,
-                                   main_blades=getattr(track, "n_blades", None) if rpm_frames.size else None)
+                                   main_blades=getattr(track, "n_blades", None) if rpm_frames.size else None,
+                                   ranges=helicopter_ranges)
     else:
         raise ValueError(f"kind: unknown target kind {track.kind!r}")
     ground = {}
@@ -974,13 +999,15 @@ class AudioScene:
 def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, duration_s: float | None = None,
                      sample_rate_hz: float = AUDIO_SAMPLE_RATE_HZ, stream_indices: tuple[int, ...] = (),
                      ground_factor: float | None = DEFAULT_GROUND_FACTOR,
-                     sound_power_db: dict[str, float] | None = None) -> AudioScene:
+                     sound_power_db: dict[str, float] | None = None, rotor_noise_ranges: dict | None = None,
+                     helicopter_ranges: dict | None = None) -> AudioScene:
     """Audio of every timeline target plus ambient beds at the microphone (the camera rig).
 
     Target i draws from ``rng_for(seed, "acoustics", *stream_indices, i)``; beds from index 1000+k.
     ``duration_s`` defaults to the timeline span plus one frame. ``ground_factor`` is the ISO 9613-2
     G of the ground (0 hard, 1 porous, None = free field); ``sound_power_db`` overrides the L_WA
-    of drones by target name.
+    of drones by target name; ``rotor_noise_ranges`` / ``helicopter_ranges`` replace spans of the
+    drawn source parameters (:func:`merged_ranges`; None keeps the module's ranges).
     """
     check_sample_rate(sample_rate_hz)
     times = np.asarray(timeline.times_s, dtype=np.float64)
@@ -1000,7 +1027,9 @@ def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, d
         power = (sound_power_db or {}).get(track.name)
         received, range_m = synthesize_target(track, times, mic, n, sample_rate_hz, atm.air_temperature_k,
                                               atm.relative_humidity, rng, wingbeats.get(track.name, 4.0),
-                                              ground_factor=ground_factor, sound_power_db=power)
+                                              ground_factor=ground_factor, sound_power_db=power,
+                                              rotor_noise_ranges=rotor_noise_ranges,
+                                              helicopter_ranges=helicopter_ranges)
         if track.kind in DRONE_KINDS:
             scene.sound_power_dba[track.name] = (power if power is not None
                                                  else sound_power_dba(track.kind, track.size_m))

@@ -361,3 +361,63 @@ def test_rotor_rpm_fluctuation_is_zero_sum_and_correlated():
     lag1 = float(np.corrcoef(x[:-1], x[1:])[0, 1])
     assert lag1 > 0.5                                           # a Gauss-Markov process, not white jitter
     assert np.array_equal(rotor_rpm_fluctuation(rng_for(1, "rotor_detune", 0), 10, 1, 30.0), np.ones((10, 1)))
+
+
+# --------------------------------------------------------------------------------------------
+# Issue 24, fourth pass: spans of the drawn source parameters replaced per call
+# --------------------------------------------------------------------------------------------
+
+def test_replaced_rotor_span_moves_only_its_own_draw_by_the_linear_map():
+    base = ac.draw_rotor_noise(rng_for(4, "acoustics", 7))
+    assert ac.draw_rotor_noise(rng_for(4, "acoustics", 7), None) == base          # None: the module's ranges
+    moved = ac.draw_rotor_noise(rng_for(4, "acoustics", 7), {"broadband_low_hz": (30.0, 120.0)})
+    # rng.uniform(lo, hi) = lo + (hi - lo) u with the same u: 100-400 Hz -> 30-120 Hz is x' = 30 + 0.3 (x - 100)
+    assert moved.broadband_shape[0] == pytest.approx(30.0 + 0.3 * (base.broadband_shape[0] - 100.0), rel=1e-12)
+    assert moved.broadband_shape[1:] == base.broadband_shape[1:]
+    assert (moved.harmonic_decay, moved.broadband_offset_db, moved.pwm_hz, moved.pole_pairs) == (
+        base.harmonic_decay, base.broadband_offset_db, base.pwm_hz, base.pole_pairs)
+
+
+@pytest.mark.parametrize("over, match", [({"colour": (1.0, 2.0)}, "rotor_noise.colour"),
+                                         ({"pwm_hz": (8000.0, 9000.0)}, "rotor_noise.pwm_hz"),
+                                         ({"imbalance": (0.2, 0.1)}, "rotor_noise.imbalance"),
+                                         ({"harmonic_decay": (0.5,)}, "rotor_noise.harmonic_decay")])
+def test_bad_rotor_span_is_named(over, match):
+    with pytest.raises(ValueError, match=match):
+        ac.draw_rotor_noise(rng_for(4, "acoustics", 7), over)
+
+
+def test_helicopter_spans_replaced_keep_the_level_and_name_a_bad_key():
+    n = FS
+    t = np.arange(n) / FS
+    ret = ac.Retarded(tau_s=t, dtau_dt=np.ones(n), range_m=np.ones(n))
+    x = ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0), main_rpm=390.0, main_blades=3)
+    same = ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0), main_rpm=390.0, main_blades=3, ranges={})
+    assert x.tobytes() == same.tobytes()
+    y = ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0), main_rpm=390.0, main_blades=3,
+                                ranges={"turbine_hz": (9000.0, 9000.0), "turbine_db": (0.0, 0.0)})
+    assert ac.pa_to_db_spl(np.sqrt(np.mean(y ** 2))) == pytest.approx(ac.HELICOPTER_DB_1M, abs=1e-6)
+    peak, bin_hz = _peak_hz(y, 5000.0, 14000.0)
+    assert abs(peak - 9000.0) <= 0.02 * 9000.0 + bin_hz         # the tone wanders (0.5 % std, slow)
+    for bad, match in (({"tail_blades": (2.0, 3.0)}, "helicopter.tail_blades"),
+                       ({"tip_noise_db": (-6.0, -16.0)}, "helicopter.tip_noise_db")):
+        with pytest.raises(ValueError, match=match):
+            ac.helicopter_signature(ret, FS, rng_for(3, "acoustics", 0), ranges=bad)
+
+
+def test_lower_rotor_broadband_edge_raises_the_low_bands_measured():
+    """A 30 Hz instead of 300 Hz broadband edge (same draws otherwise): the 40-80 Hz band (under the
+    first blade-passing line, BPF = 2 x 6000 / 60 = 200 Hz) rises against 2-4 kHz. With a 2nd-order
+    high-pass and the tilt referenced to the edge, the broadband alone gains ~20 lg(0.87 / 0.04) ~ 27 dB at
+    60 Hz relative to the 2-4 kHz band less the tilt's 3 dB/oct x 3.3 oct; assert > 10 dB."""
+    track, t = _track([0.0, 20.0, 10.0], [0.0, 0.0, 0.0], rpm=6000.0, duration_s=1.0)
+
+    def ratio_db(low_hz: float) -> float:
+        over = {"broadband_low_hz": (low_hz, low_hz), "broadband_tilt_db": (-3.0, -3.0)}
+        x, _ = ac.synthesize_target(track, t, MIC, FS, FS, 293.15, 0.7, rng_for(1, "acoustics", 0),
+                                    rotor_noise_ranges=over)
+        spec = np.abs(np.fft.rfft(x)) ** 2
+        f = np.fft.rfftfreq(x.size, 1 / FS)
+        return 10 * np.log10(spec[(f > 40) & (f < 80)].sum() / spec[(f > 2000) & (f < 4000)].sum())
+
+    assert ratio_db(30.0) - ratio_db(300.0) > 10.0

@@ -97,7 +97,9 @@ def test_synthetic_clips_are_deterministic_per_seed_and_labelled():
 
 @pytest.mark.parametrize("bad, field", [({"drone_range_m": [[50.0, 10.0]]}, "drone_range_m[0]"),
                                         ({"drone_kinds": ["zeppelin"]}, "drone_kinds"),
-                                        ({"duration_s": -1}, "duration_s"), ({"colour": 1}, "colour")])
+                                        ({"duration_s": -1}, "duration_s"), ({"colour": 1}, "colour"),
+                                        ({"rotor_noise": {"colour": [1.0, 2.0]}}, "rotor_noise.colour"),
+                                        ({"helicopter": {"tip_noise_db": [-6.0, -16.0]}}, "helicopter.tip_noise_db")])
 def test_bad_config_names_the_field(bad, field):
     with pytest.raises(UserInputError, match=field.replace("[", r"\[").replace("]", r"\]")):
         A.synthetic_audio_clips(bad, 0, 1)
@@ -197,3 +199,15 @@ def test_audio_only_protocol_renders_no_video(tmp_path):
     assert not (tmp_path / "run" / "synthetic").exists()                   # no video rendered
     summary = json.loads((tmp_path / "run" / "sim2real.json").read_text())
     assert list(summary["sensors"]) == ["audio"] and summary["sensors"]["audio"]["n_clips"]["evaluation"] > 0
+
+
+def test_source_spans_reach_only_their_own_class():
+    """The config's helicopter spans change the helicopter clip only, its rotor-noise spans the drone clip only."""
+    cfg = {"duration_s": 1.0, "drone_range_m": [[10.0, 20.0]]}
+    fitted = A.synthetic_audio_clips(cfg, 3, 1)                                 # the sim2real helicopter spans
+    module = A.synthetic_audio_clips({**cfg, "helicopter": {}}, 3, 1)           # acoustics.HELICOPTER_RANGES
+    low_edge = A.synthetic_audio_clips({**cfg, "rotor_noise": {"broadband_low_hz": [30.0, 120.0]}}, 3, 1)
+    same = [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(fitted, module)]
+    assert same == [True, False, True]                                          # DRONE, HELICOPTER, BACKGROUND
+    same = [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(fitted, low_edge)]
+    assert same == [False, True, True]
