@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
 
 from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M
 from scenes.loader import GENERATION_DIR
@@ -86,6 +86,10 @@ class DistanceBin(_Model):
     range_m: Range
 
 
+#: Randomisation fields dumped only when set (see Randomisation._dump)
+_OMIT_WHEN_UNSET = ("multirotor_frame_warming_k",)
+
+
 class Randomisation(_Model):
     """Ranges applied on top of each mixture scenario; a field left null keeps the preset's value.
 
@@ -146,6 +150,16 @@ class Randomisation(_Model):
         "correlation time of the pointing error (scenes.schema.Tracking.error_period_s; null: its default)"))
     cloud_cover: Range | None = Field(default=None, description="sky.clouds.coverage, 0-1")
     terrain: Terrain | None = Field(default=None, description="the ground and horizon clutter of every sequence")
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        """Fields added after a dataset format froze are left out of the dump while unset, so a config
+        without them keeps its manifest bytes and ``dataset_id`` (an older dataset folder resumes)."""
+        data = handler(self)
+        for name in _OMIT_WHEN_UNSET:
+            if isinstance(data, dict) and data.get(name, 0) is None:
+                del data[name]
+        return data
 
     @model_validator(mode="after")
     def _checks(self) -> "Randomisation":

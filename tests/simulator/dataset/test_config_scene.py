@@ -139,3 +139,13 @@ def test_multirotor_frame_warming_heats_only_body_and_arms_and_leaves_every_othe
         _cfg(multirotor_frame_warming_k=[-1, 2])
     with pytest.raises(UserInputError, match="multirotor_frame_warming_k"):
         _cfg(multirotor_frame_warming_k=[3, 2])
+
+
+def test_an_unset_frame_warming_is_left_out_of_the_dump_and_a_set_one_round_trips():
+    """The manifest and dataset_id of a config without the field keep their bytes (an older dataset
+    folder still resumes); a set value is recorded and read back."""
+    plain, warm = _cfg(), _cfg(multirotor_frame_warming_k=[0, 8])
+    assert "multirotor_frame_warming_k" not in plain.model_dump(mode="json")["randomise"]
+    dumped = warm.model_dump(mode="json")
+    assert dumped["randomise"]["multirotor_frame_warming_k"] == {"min": 0.0, "max": 8.0}
+    assert load_generation_config(dumped) == warm
