@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
 
 from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M
 from scenes.loader import GENERATION_DIR
@@ -26,6 +26,7 @@ SPLITS = ("train", "val", "test")
 # sub-streams of the "generation" stream per sequence (never renumber: it would change datasets)
 _S_PRESET, _S_SEED, _S_TARGET, _S_TRAJ, _S_SUN, _S_AIR, _S_PARTS, _S_CAMERA, _S_DISTRACT = range(1, 10)
 _S_BINS, _S_FOV, _S_MODE, _S_CLOUDS, _S_ELEV = range(10, 15)   # scene-realism fields (issue 23)
+_S_FRAME_WARM = 15                                              # multirotor frame warming (issue 23)
 _SPLIT_TAG = 1000
 
 
@@ -85,6 +86,10 @@ class DistanceBin(_Model):
     range_m: Range
 
 
+#: Randomisation fields dumped only when set (see Randomisation._dump)
+_OMIT_WHEN_UNSET = ("multirotor_frame_warming_k",)
+
+
 class Randomisation(_Model):
     """Ranges applied on top of each mixture scenario; a field left null keeps the preset's value.
 
@@ -110,6 +115,10 @@ class Randomisation(_Model):
     relative_humidity: Range | None = None
     visibility_m: Range | None = None
     part_temperature_offset_k: Range | None = Field(default=None, description="added to every part offset")
+    multirotor_frame_warming_k: Range | None = Field(default=None, description=(
+        "flying multirotors only (quadcopter, hexacopter): one draw per target (K, >= 0) added to the body and "
+        "arm offsets, the heat the ESCs on the arms and the power board and battery in the centre plate give "
+        "the frame in flight (docs/SIM2REAL.md); null: the kind's defaults"))
     camera_yaw_deg: Range | None = Field(default=None, description="thermal-to-RGB yaw offset")
     camera_pitch_deg: Range | None = Field(default=None, description="thermal-to-RGB pitch offset")
     camera_translation_m: Range | None = Field(default=None, description="thermal-to-RGB baseline along x")
@@ -142,6 +151,16 @@ class Randomisation(_Model):
     cloud_cover: Range | None = Field(default=None, description="sky.clouds.coverage, 0-1")
     terrain: Terrain | None = Field(default=None, description="the ground and horizon clutter of every sequence")
 
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        """Fields added after a dataset format froze are left out of the dump while unset, so a config
+        without them keeps its manifest bytes and ``dataset_id`` (an older dataset folder resumes)."""
+        data = handler(self)
+        for name in _OMIT_WHEN_UNSET:
+            if isinstance(data, dict) and data.get(name, 0) is None:
+                del data[name]
+        return data
+
     @model_validator(mode="after")
     def _checks(self) -> "Randomisation":
         if self.distractors[0] > self.distractors[1]:
@@ -170,6 +189,10 @@ class Randomisation(_Model):
             value = getattr(self, name)
             if value is not None and (value.min < 0 or (name == "hfov_deg" and not 0 < value.min <= value.max < 170)):
                 raise ValueError(f"{name} out of range, got [{value.min}, {value.max}]")
+        if self.multirotor_frame_warming_k is not None and not (
+                0.0 <= self.multirotor_frame_warming_k.min and self.multirotor_frame_warming_k.max <= 60.0):
+            raise ValueError(f"multirotor_frame_warming_k must lie in [0, 60] K, got "
+                             f"[{self.multirotor_frame_warming_k.min}, {self.multirotor_frame_warming_k.max}]")
         for name in ("speed_mps", "target_px", "target_size_scale"):
             value = getattr(self, name)
             if value is not None and value.min <= 0:
@@ -329,7 +352,7 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
 
     Each step draws from its own sub-stream ``rng_for(seed, "generation", index, _S_...)``, in this
     order: primary target (kind, size), track (range, path, camera), sun, clouds, air, part
-    temperatures, thermal-camera offset, distractors."""
+    temperatures, multirotor frame warming, thermal-camera offset, distractors."""
     source = choose_source(config, seed, index)
     base = _load_source(source, base_dir)
     r = config.randomise
@@ -356,6 +379,8 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
     _draw_air(r, data["atmosphere"], stream(_S_AIR))
     if r.part_temperature_offset_k is not None:
         _draw_part_offsets(r.part_temperature_offset_k, targets, stream(_S_PARTS))
+    if r.multirotor_frame_warming_k is not None:
+        _draw_frame_warming(r.multirotor_frame_warming_k, targets, stream(_S_FRAME_WARM))
     _draw_camera_offset(r, rig["thermal_offset"], stream(_S_CAMERA))
     _draw_distractors(r, targets, targets[p], rig, base, cam_pos, duration, stream(_S_DISTRACT))
 
@@ -484,6 +509,33 @@ def _draw_part_offsets(offset: Range, targets: list[dict], rng: np.random.Genera
             thermal["contrast_k"] = round(thermal["contrast_k"] + delta, 4)
             if thermal.get("contrast_end_k") is not None:
                 thermal["contrast_end_k"] = round(thermal["contrast_end_k"] + delta, 4)
+
+
+#: the part roles a flying multirotor's frame warming heats: the centre plate and shell (power board,
+#: flight controller, battery bay) and the arms (ESCs strapped under them, motor heat conducted inward)
+FRAME_WARMING_ROLES = ("body", "arm")
+
+
+def _draw_frame_warming(warming: Range, targets: list[dict], rng: np.random.Generator) -> None:
+    """One draw per target in order (multirotor or not, so adding a distractor never shifts the
+    primary's draw), added to the body and arm offsets of quadcopters and hexacopters in offset mode."""
+    from scenes.defaults import offset_for
+
+    for t_data in targets:
+        delta = warming.draw(rng)
+        thermal = t_data["thermal"]
+        if t_data["kind"] not in ("quadcopter", "hexacopter") or thermal["mode"] != "offset":
+            continue
+        probe = Target.model_validate(t_data)
+        offsets = dict(thermal["offsets_k"])
+        for role in FRAME_WARMING_ROLES:
+            offsets[role] = round(offset_for(probe, role) + delta, 4)
+        thermal["offsets_k"] = offsets
+        if thermal.get("offsets_end_k") is not None:
+            end = dict(thermal["offsets_end_k"])
+            for role in FRAME_WARMING_ROLES:
+                end[role] = round(offset_for(probe, role, end=True) + delta, 4)
+            thermal["offsets_end_k"] = end
 
 
 def _draw_camera_offset(r: Randomisation, off: dict, rng: np.random.Generator) -> None:

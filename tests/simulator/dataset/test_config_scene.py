@@ -116,3 +116,36 @@ def test_a_slow_pointing_error_keeps_the_camera_still_between_frames():
                                    30.0, np.random.default_rng(0), np.random.default_rng(1))
         steps[period] = float(np.median(np.degrees(np.arccos(np.clip(np.sum(fwd[1:] * fwd[:-1], 1), -1, 1)))))
     assert steps[30.0] < 0.3 * steps[1.5]
+
+
+def test_multirotor_frame_warming_heats_only_body_and_arms_and_leaves_every_other_draw_alone():
+    from scenes.defaults import offset_for
+
+    plain, warm = _cfg(), _cfg(multirotor_frame_warming_k=[4, 9])
+    for i in range(4):
+        a, b = randomised_scenario(plain, 3, i)[1], randomised_scenario(warm, 3, i)[1]
+        drone_a, drone_b = a.targets[0], b.targets[0]
+        assert drone_b.kind in ("quadcopter", "hexacopter")
+        delta = offset_for(drone_b, "body") - offset_for(drone_a, "body")
+        assert 4.0 <= delta <= 9.0
+        assert offset_for(drone_b, "arm") - offset_for(drone_a, "arm") == pytest.approx(delta, abs=1e-3)
+        for role in ("motor", "battery", "prop", "camera"):
+            assert offset_for(drone_b, role) == offset_for(drone_a, role)
+        # the distractor (a bird, a plane...) and everything else are untouched
+        assert a.targets[1:] == b.targets[1:]
+        assert a.model_copy(update={"targets": b.targets}) == b
+    assert randomised_scenario(warm, 3, 0)[1] == randomised_scenario(warm, 3, 0)[1]   # deterministic per seed
+    with pytest.raises(UserInputError, match="multirotor_frame_warming_k"):
+        _cfg(multirotor_frame_warming_k=[-1, 2])
+    with pytest.raises(UserInputError, match="multirotor_frame_warming_k"):
+        _cfg(multirotor_frame_warming_k=[3, 2])
+
+
+def test_an_unset_frame_warming_is_left_out_of_the_dump_and_a_set_one_round_trips():
+    """The manifest and dataset_id of a config without the field keep their bytes (an older dataset
+    folder still resumes); a set value is recorded and read back."""
+    plain, warm = _cfg(), _cfg(multirotor_frame_warming_k=[0, 8])
+    assert "multirotor_frame_warming_k" not in plain.model_dump(mode="json")["randomise"]
+    dumped = warm.model_dump(mode="json")
+    assert dumped["randomise"]["multirotor_frame_warming_k"] == {"min": 0.0, "max": 8.0}
+    assert load_generation_config(dumped) == warm

@@ -166,3 +166,33 @@ def test_a_cached_sky_bake_renders_the_same_bytes_as_a_fresh_one(tmp_path):
 
     keys = {rr._sky_key(load_mitsuba(), build_timeline(clear, seed, 1)) for seed in (5, 6)}
     assert len(rr._SKY_BAKES) == 2 and len(keys) == 1                         # no clouds: the seed does not count
+
+
+def test_multirotor_frame_warming_grows_the_drones_hot_area():
+    """A quadcopter 40 m away on a 24-deg, 320-px thermal camera (the benchmark's geometry): with
+    ``multirotor_frame_warming_k`` the body and arms join the motors and battery far above the sky, so
+    more pixels stand out and the summed excess grows; a zero warming renders the same image as none."""
+    from simulator.dataset.config import load_generation_config, randomised_scenario
+
+    def hot_pixels(warming):
+        randomise = {"range_m": [40, 40], "trajectory_kinds": ["hover"], "hfov_deg": [24, 24],
+                     "air_temperature_k": [285, 285], "target_size_scale": [1.5, 1.5]}
+        if warming is not None:
+            randomise["multirotor_frame_warming_k"] = [warming, warming]
+        cfg = load_generation_config({"name": "t", "mixture": [{"scenario": "clear_day_quad"}], "frames": 2,
+                                      "image_size": [320, 256], "spp": 2, "randomise": randomise})
+        scenario = randomised_scenario(cfg, 0, 0)[1]
+        _, out = _render_frames(scenario, 0, [0], 2)
+        kelvin, mask = out[0].thermal_kelvin, out[0].mask_thermal
+        ys, xs = np.nonzero(mask == 1)
+        y0, x0 = max(0, ys.min() - 8), max(0, xs.min() - 8)
+        window, inside = kelvin[y0:ys.max() + 9, x0:xs.max() + 9], mask[y0:ys.max() + 9, x0:xs.max() + 9] == 1
+        excess = window - np.median(window[~inside])
+        # pixels far above the sky (a part's own temperature, not a grazing hit) and the summed excess
+        return (int((excess > 22.0).sum()), float(excess[excess > 1.0].sum())), kelvin
+
+    base, plain = hot_pixels(None)
+    zero, unwarmed = hot_pixels(0.0)
+    warm, _ = hot_pixels(10.0)
+    assert np.array_equal(unwarmed, plain) and zero == base        # a zero offset renders the same image
+    assert base[0] >= 2 and warm[0] >= base[0] + 2 and warm[1] >= base[1] + 20.0
