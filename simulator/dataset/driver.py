@@ -7,9 +7,11 @@ hashed; :func:`drive` owns everything around them, the same for every kind:
 * the output rules: a missing or empty folder, or the same dataset (resumed), or a different one
   replaced only with ``overwrite`` (``simulator.files.check_output``);
 * the dataset lock (one writer; a dead writer's stale lock and temporaries are cleared);
-* the manifest as the journal: written first with ``"complete": false``, rewritten with each unit's
-  content hash as the unit finishes (so a killed run resumes from the units it recorded), and last
-  with ``"complete": true``; no timestamps, so a resumed run ends byte-identical to an
+* the manifest as the journal: written first with ``"complete": false``, rewritten with the content
+  hashes of the units finished so far (at most every ``JOURNAL_INTERVAL_S``, and whenever the run
+  stops: done, a failure or Ctrl-C; a SIGKILL loses at most the last interval's records, whose units
+  are written again), so a resumed run keeps every unit it recorded; last with
+  ``"complete": true``; no timestamps, so a resumed run ends byte-identical to an
   uninterrupted one;
 * the executor (:mod:`simulator.jobs`) with failures collected per unit: the other units finish and
   :class:`GenerationFailed` names the failed ones.
@@ -19,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Protocol
@@ -27,6 +30,7 @@ from scenes.errors import UserInputError
 from simulator.files import LEASE_FILE, LOCK_FILE, DatasetLock, check_output, write_atomic
 
 MANIFEST = "manifest.json"
+JOURNAL_INTERVAL_S = 2.0   # at most one journal rewrite of the manifest per this many seconds (and one at the end)
 
 
 class GenerationFailed(RuntimeError):
@@ -199,14 +203,20 @@ def _drive_locked(kind: DatasetKind, out: Path, lock: DatasetLock, *, overwrite:
     unit_notes: dict[str, list[str]] = {}
     finished: set[str] = set()
     by_name = {u.name: u for u in todo}
-    for r in kind.run(out, todo, workers=workers, progress=progress):
-        finished.add(r["name"])
-        if "error" in r:
-            failures[r["name"]] = r["error"]
-            continue
-        hashes[r["name"]] = kind.unit_hash(out, by_name[r["name"]])
-        unit_notes[r["name"]] = list(r.get("notes", []))
-        write_manifest(out, kind.manifest(units, hashes, False, out))  # the journal a resumed run reads
+    last_journal = time.monotonic()
+    try:
+        for r in kind.run(out, todo, workers=workers, progress=progress):
+            finished.add(r["name"])
+            if "error" in r:
+                failures[r["name"]] = r["error"]
+                continue
+            hashes[r["name"]] = kind.unit_hash(out, by_name[r["name"]])
+            unit_notes[r["name"]] = list(r.get("notes", []))
+            if time.monotonic() - last_journal >= JOURNAL_INTERVAL_S:   # a large manifest is not rewritten per unit
+                write_manifest(out, kind.manifest(units, hashes, False, out))  # the journal a resumed run reads
+                last_journal = time.monotonic()
+    finally:  # whatever ended the loop (done, a failure, Ctrl-C), what finished is recorded
+        write_manifest(out, kind.manifest(units, hashes, False, out))
     failures.update({u.name: "no result from the executor" for u in todo if u.name not in finished})
     if failures:
         raise GenerationFailed(failures, kind.noun)
