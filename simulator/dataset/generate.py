@@ -19,7 +19,7 @@ import os
 import shutil
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
@@ -278,13 +278,16 @@ class NativeDataset:
     executor: str = "local"
     ray_address: str | None = None
     noun: str = "sequence"
+    _identity: str | None = field(default=None, init=False, repr=False)
 
     @property
     def label(self) -> str:
         return f"generate {self.config.name}"
 
     def identity(self) -> str:
-        return dataset_identity(self.config, self.seed, self.tasks)
+        if self._identity is None:   # hashed once: every journal write of the manifest carries it
+            self._identity = dataset_identity(self.config, self.seed, self.tasks)
+        return self._identity
 
     def units(self) -> list[Unit]:
         return [Unit(t["name"], t) for t in self.tasks]

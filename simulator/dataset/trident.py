@@ -538,12 +538,9 @@ def _content_hash(root: Path) -> str:
     """sha256 over every file of the dataset but its manifest and the driver's bookkeeping (lock, lease)."""
     from simulator.files import BOOKKEEPING
 
-    digest = hashlib.sha256()
-    for path in sorted(p for p in root.rglob("*") if p.is_file() and p.name != "manifest.json"
-                       and not (p.parent == root and p.name in BOOKKEEPING)):
-        digest.update(str(path.relative_to(root)).encode())
-        digest.update(hashlib.sha256(path.read_bytes()).digest())
-    return digest.hexdigest()
+    files = sorted(p for p in root.rglob("*") if p.is_file() and p.name != "manifest.json"
+                   and not (p.parent == root and p.name in BOOKKEEPING))     # Path order (recorded hashes)
+    return _digest(root, [str(p.relative_to(root)) for p in files])
 
 
 class PlanItem(BaseModel):
@@ -651,13 +648,18 @@ def _clip_files(config: TridentConfig, label: str, group: str, number: int) -> l
                       n_segments=config.n_segments, save_iq=config.save_iq)
 
 
-def _files_hash(root: Path, files: list[str]) -> str:
-    """A clip's content hash: sha256 over its files' relative paths and contents, in sorted order."""
+def _digest(root: Path, ordered: list[str]) -> str:
+    """sha256 over each file's relative path and the sha256 of its bytes, in the given order."""
     digest = hashlib.sha256()
-    for rel in sorted(files):
+    for rel in ordered:
         digest.update(rel.encode())
         digest.update(hashlib.sha256((root / rel).read_bytes()).digest())
     return digest.hexdigest()
+
+
+def _files_hash(root: Path, files: list[str]) -> str:
+    """A clip's content hash: :func:`_digest` of its files in sorted string order."""
+    return _digest(root, sorted(files))
 
 
 @dataclass
