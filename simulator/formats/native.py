@@ -13,9 +13,17 @@ import cv2
 import numpy as np
 
 FORMAT_VERSION = 1
-# zlib level 1: measured on rendered frames (docs/BENCHMARKS.md, "PNG level"): ~30 % less encode
-# time than level 3 for ~15 % larger files; levels >= 6 cost 2-30x more for < 25 % smaller files
+# PNG encoder settings, measured on rendered frames (docs/BENCHMARKS.md, "PNG level" and "PNG row
+# filter and zlib strategy"; benchmarks/png_encode.py): zlib level 1 (levels >= 6 cost 2-30x more
+# for < 25 % smaller files), zlib's run-length strategy (string matching finds little in sensor
+# noise; runs of equal bytes are what filtered sky and masks hold) and one fixed row filter instead
+# of libpng's per-row trial of all five: Sub for colour (neighbouring pixels), Up for single-channel
+# images (the row above). Half the encode time of libpng's adaptive choice and smaller files.
+# Lossless either way: the pixels are the same whatever the settings, only the file bytes change.
 PNG_COMPRESSION = 1
+PNG_STRATEGY = cv2.IMWRITE_PNG_STRATEGY_RLE
+PNG_FILTER_COLOUR = cv2.IMWRITE_PNG_FILTER_SUB
+PNG_FILTER_SINGLE_CHANNEL = cv2.IMWRITE_PNG_FILTER_UP
 
 
 def frame_name(index0: int, ext: str) -> str:
@@ -34,11 +42,20 @@ def sequence_files(n_frames: int) -> list[str]:
     return list(SEQUENCE_FILES) + [f"{d}/{frame_name(i, 'png')}" for d in FRAME_FOLDERS for i in range(n_frames)]
 
 
+def png_params(image: np.ndarray) -> list[int]:
+    """cv2.imwrite/imencode parameters of the native PNG settings for this image (the strategy after
+    the level: OpenCV resets the strategy when it reads a level)."""
+    row_filter = PNG_FILTER_COLOUR if image.ndim == 3 else PNG_FILTER_SINGLE_CHANNEL
+    return [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION, cv2.IMWRITE_PNG_STRATEGY, PNG_STRATEGY,
+            cv2.IMWRITE_PNG_FILTER, row_filter]
+
+
 def write_png(path: Path, image: np.ndarray) -> None:
+    """An RGB (H, W, 3) or single-channel 8/16-bit image as PNG with the native settings."""
     path.parent.mkdir(parents=True, exist_ok=True)
     if image.ndim == 3:
         image = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
-    if not cv2.imwrite(str(path), image, [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION]):
+    if not cv2.imwrite(str(path), image, png_params(image)):
         raise OSError(f"could not write {path}")
 
 
