@@ -24,7 +24,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, TypedDict
 
 import numpy as np
 import torch
@@ -38,6 +38,7 @@ __all__ = [
     "GateParams",
     "GateStats",
     "GateStep",
+    "GateSweepRow",
     "HysteresisGate",
     "simulate_gate",
     "subset_fusion_table",
@@ -131,6 +132,23 @@ class GateStats:
     @property
     def abstain_rate(self) -> float:
         return self.abstained / self.steps if self.steps else 0.0
+
+
+class GateSweepRow(TypedDict):
+    """One grid point of :func:`sweep_gates` (a plain dict at run time)."""
+
+    tau_high: float
+    tau_low: float
+    n: int
+    mode: GateMode
+    accuracy: float
+    delta_accuracy: float
+    skip_rate: float
+    skip_rate_per_modality: tuple[float, ...]
+    exclusion_rate: float
+    abstain_rate: float
+    accuracy_answered: float
+    forced: int
 
 
 @dataclass(frozen=True)
@@ -355,7 +373,7 @@ def sweep_gates(
     abstain_patience: int = 1,
     rule: str = "dempster_shafer",
     construction: Construction = "canonical",
-) -> list[dict[str, object]]:
+) -> list[GateSweepRow]:
     """Offline sweep over the ``tau_high x tau_low x n`` grid on cached per-modality alphas (M, N, K).
 
     Combinations with ``tau_low >= tau_high`` are skipped. Each row: the parameters, ``accuracy``
@@ -379,7 +397,7 @@ def sweep_gates(
     cols = np.arange(num)
     full = 2**m - 1
     base_acc = float((pred_table[full] == y).mean()) if num else float("nan")
-    rows: list[dict[str, object]] = []
+    rows: list[GateSweepRow] = []
     for th, tl, nn_ in itertools.product(tau_high, tau_low, n):
         if not tl < th:
             continue

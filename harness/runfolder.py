@@ -9,7 +9,7 @@ import io
 import json
 import time
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -48,7 +48,7 @@ def write_json(path: Path, obj: Any) -> None:
     write_atomic(path, json.dumps(_jsonable(obj), indent=1))
 
 
-def write_csv(path: Path, rows: list[dict]) -> None:
+def write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
     buf = io.StringIO()
     keys: list[str] = []
     for r in rows:

@@ -171,7 +171,7 @@ def _frame_box(x: Any) -> np.ndarray | None:
 def state_accuracy(
     pred_boxes: Sequence[Any],
     gt_boxes: Sequence[Any],
-    exist: Sequence[Any],
+    exist: Sequence[Any] | np.ndarray,
     variant: Literal["plain", "penalised"] = "plain",
 ) -> float:
     """Anti-UAV state accuracy of one sequence (boxes ``[x, y, w, h]``; no box = None, [] or [0]).
