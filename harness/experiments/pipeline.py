@@ -7,22 +7,22 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import torch
 
 from evids.fusion import GMU, LateFusion
-from evids.modalities import INPUT_FIELD, MODALITIES
-from evids.models.backbones import UnimodalModel, build_model, seeded_init
+from evids.modalities import INPUT_FIELD, MODALITIES, Modality
+from evids.models.backbones import HeadKind, UnimodalModel, build_model, seeded_init
 from evids.models.train import TrainResult, predict, train_model
-from harness.experiments.config import ExperimentConfig
+from harness.experiments.config import ExperimentConfig, ModelsConfig
 from harness.experiments.data import Prepared, labels_of, stack
 from simulator.files import atomic_path
-from simulator.jobs import iter_jobs, job_context
+from simulator.jobs import Start, iter_jobs, job_context
 from simulator.seeding import STREAMS
 
-HEADS = ("sigmoid", "evidential")
+HEADS: tuple[HeadKind, ...] = ("sigmoid", "evidential")
 
 
 def model_seed(base: int, modality: str, head: str) -> tuple[int, int]:
@@ -48,6 +48,20 @@ class Models:
     @property
     def temperature(self) -> float:
         return self.temperatures.get("late", 1.0)
+
+    def late_head(self, clean_fit: bool = False) -> LateFusion:
+        """Late Fusion fitted on noisy validation outputs, or (``clean_fit``) the clean-fitted control."""
+        head = self.late_clean if clean_fit else self.late
+        if head is None:
+            raise ValueError(f"these models have no {'clean-fitted ' if clean_fit else ''}Late Fusion head")
+        return head
+
+    def gmu_head(self, clean_fit: bool = False) -> GMU:
+        """GMU fitted on noisy validation outputs, or (``clean_fit``) the clean-fitted control."""
+        head = self.gmu_clean if clean_fit else self.gmu
+        if head is None:
+            raise ValueError(f"these models have no {'clean-fitted ' if clean_fit else ''}GMU head")
+        return head
 
 
 @dataclass
@@ -97,13 +111,13 @@ def encode(models: Models, mfcc: np.ndarray, video: np.ndarray, rf: np.ndarray,
 
 def late_probs(models: Models, out: Outputs, clean_fit: bool = False) -> np.ndarray:
     """Late Fusion P(class 1) (N,); ``clean_fit`` uses the control fitted on clean train outputs."""
-    head = models.late_clean if clean_fit else models.late
+    head = models.late_head(clean_fit)
     with torch.no_grad():
         return head(torch.from_numpy(out.logit)).double().numpy()
 
 
 def gmu_logit(models: Models, out: Outputs, clean_fit: bool = False) -> np.ndarray:
-    head = models.gmu_clean if clean_fit else models.gmu
+    head = models.gmu_head(clean_fit)
     with torch.no_grad():
         return head([torch.from_numpy(e) for e in out.emb]).squeeze(-1).double().numpy()
 
@@ -130,7 +144,7 @@ def training_seed_base(seed: int) -> int:
     return int(seed)
 
 
-def _train_job(mc, modality: str, head: str, train_seed: int) -> tuple[dict, dict]:
+def _train_job(mc: ModelsConfig, modality: Modality, head: HeadKind, train_seed: int) -> tuple[dict, dict]:
     """Train one unimodal model on the arrays in the job context; (state dict, record)."""
     arrays = job_context()
     x, y_tr, y_va = arrays["x"], arrays["y_tr"], arrays["y_va"]
@@ -147,7 +161,7 @@ def forked_map(fn: Callable, calls: list[tuple], workers: int, label: str | None
     processes (they inherit this process's memory, so large inputs are never pickled), else
     in-process; with a progress bar when ``label`` is given; ``context`` is what
     ``simulator.jobs.job_context()`` returns inside ``fn`` (see simulator.jobs)."""
-    start = "fork" if workers > 1 and len(calls) > 1 else "inline"
+    start: Start = "fork" if workers > 1 and len(calls) > 1 else "inline"
     return iter_jobs(fn, calls, workers=workers, start=start, progress=label, context=context)
 
 
@@ -171,7 +185,8 @@ def train_unimodal(cfg: ExperimentConfig, prep: Prepared, seeds: list[int], prog
     del arrays
     results = []
     for seed in seeds:
-        unimodal, record = {}, {"train_seed": int(seed), "unimodal": {}}
+        unimodal: dict[tuple[str, str], UnimodalModel] = {}
+        record: dict[str, Any] = {"train_seed": int(seed), "unimodal": {}}
         for modality in MODALITIES:
             for head in HEADS:
                 state, rec = done[(seed, modality, head)]
@@ -225,7 +240,8 @@ def train_all(cfg: ExperimentConfig, prep: Prepared, progress: bool = True, trai
     models = Models(unimodal, heads[main][0], heads[main][1], heads[control][0], heads[control][1])
     # temperatures: on validation outputs under the test protocol, with a fresh noise draw for the heads
     t_lo, t_hi = mc.temperature_bounds
-    temps, flags = {}, {}
+    temps: dict[str, float] = {}
+    flags: dict[str, str | None] = {}
     for m, modality in enumerate(MODALITIES):
         temps[modality], flags[modality] = fit_temperature_flagged(out_va.logit[m], y_va, t_lo, t_hi)
     p_va = np.clip(late_probs(models, out_va), 1e-12, 1 - 1e-12)
@@ -243,7 +259,8 @@ def train_all(cfg: ExperimentConfig, prep: Prepared, progress: bool = True, trai
 def _state(models: Models) -> dict:
     return {"unimodal": {f"{m}/{h}": mod.state_dict() for (m, h), mod in models.unimodal.items()},
             "late": models.late.state_dict(), "gmu": models.gmu.state_dict(),
-            "late_clean": models.late_clean.state_dict(), "gmu_clean": models.gmu_clean.state_dict(),
+            "late_clean": models.late_head(clean_fit=True).state_dict(),
+            "gmu_clean": models.gmu_head(clean_fit=True).state_dict(),
             # keys interned: models fitted in a worker arrive with fresh key strings, which pickle
             # would otherwise store again instead of referencing (same values, other bytes)
             "temperatures": {sys.intern(k): v for k, v in models.temperatures.items()},
@@ -256,6 +273,16 @@ def save_models(models: list[Models], path) -> None:
         torch.save({"runs": [_state(m) for m in models]}, tmp)
 
 
+_M = TypeVar("_M", bound=torch.nn.Module)
+
+
+def _loaded(mod: _M, state_dict: dict) -> _M:
+    """``mod`` with ``state_dict`` loaded, in eval mode."""
+    mod.load_state_dict(state_dict)
+    mod.eval()
+    return mod
+
+
 def _load_one(cfg: ExperimentConfig, state: dict) -> Models:
     mc = cfg.models
     unimodal = {}
@@ -265,15 +292,19 @@ def _load_one(cfg: ExperimentConfig, state: dict) -> Models:
         model.load_state_dict(sd)
         model.eval()
         unimodal[(m, h)] = model
-    heads = []
-    for name, late in (("late", True), ("gmu", False), ("late_clean", True), ("gmu_clean", False)):
+
+    def late(name: str) -> LateFusion:
         with seeded_init(0):
-            mod = LateFusion(3) if late else GMU([mc.embedding] * 3, mc.gmu_hidden, 1, gate="sigmoid")
-        mod.load_state_dict(state[name])
-        mod.eval()
-        heads.append(mod)
-    return Models(unimodal, *heads, temperatures=dict(state["temperatures"]),
-                  temperature_flags=dict(state["temperature_flags"]))
+            mod = LateFusion(3)
+        return _loaded(mod, state[name])
+
+    def gmu(name: str) -> GMU:
+        with seeded_init(0):
+            mod = GMU([mc.embedding] * 3, mc.gmu_hidden, 1, gate="sigmoid")
+        return _loaded(mod, state[name])
+
+    return Models(unimodal, late("late"), gmu("gmu"), late("late_clean"), gmu("gmu_clean"),
+                  temperatures=dict(state["temperatures"]), temperature_flags=dict(state["temperature_flags"]))
 
 
 def load_models(cfg: ExperimentConfig, path) -> list[Models]:
