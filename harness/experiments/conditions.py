@@ -8,8 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from evids.fusion import average, dempster_shafer, discounted_belief_fusion, yager
+from evids.fusion import FusionResult, average, dempster_shafer, discounted_belief_fusion, yager
 from evids.gating import GateParams, simulate_gate, subset_fusion_table
+from evids.heads import Construction
 from evids.metrics import (
     accuracy,
     brier,
@@ -20,6 +21,7 @@ from evids.metrics import (
     uauc,
 )
 from evids.modalities import MODALITIES
+from harness.experiments.config import GateConfig
 from harness.experiments.pipeline import Models, Outputs, gmu_logit
 
 
@@ -73,6 +75,20 @@ class Prediction:
     log_probs: np.ndarray | None = None    # exact (N, 2) log-probabilities (entropies without ties)
 
 
+def _modality(cond: Condition) -> str:
+    """The modality of a unimodal condition (its rule reads one modality's outputs)."""
+    if cond.modality is None:
+        raise ValueError(f"condition {cond.key!r}: rule {cond.rule!r} needs a modality")
+    return cond.modality
+
+
+def _conflict(r: FusionResult) -> torch.Tensor:
+    """The rule's conflict term (DS, Yager and discounted fusion always return one)."""
+    if r.conflict is None:
+        raise ValueError("this fusion rule returned no conflict term")
+    return r.conflict
+
+
 def _from_logit(z: np.ndarray) -> Prediction:
     """Sigmoid P(class 1) = sigmoid(z) with exact log-probabilities."""
     z = np.asarray(z, np.float64)
@@ -82,7 +98,7 @@ def _from_logit(z: np.ndarray) -> Prediction:
 
 def _late_log_probs(models: Models, out: Outputs, clean_fit: bool = False) -> np.ndarray:
     """log [P0, P1] of Late Fusion p1 = sum_m w_m sigmoid(z_m), in the log domain."""
-    head = models.late_clean if clean_fit else models.late
+    head = models.late_head(clean_fit)
     logw = np.log(head.weights.detach().double().numpy())[:, None]
     z = out.logit
     from scipy.special import logsumexp
@@ -96,7 +112,7 @@ def _alpha_log_probs(alpha: np.ndarray) -> np.ndarray:
     return np.log(alpha) - np.log(alpha.sum(-1, keepdims=True))
 
 
-def fuse(rule: str, alpha: np.ndarray, c_max: float, construction: str) -> Prediction:
+def fuse(rule: str, alpha: np.ndarray, c_max: float, construction: Construction) -> Prediction:
     """Fuse (3, N, 2) alphas with one rule."""
     a = torch.from_numpy(alpha)
     if rule == "average":
@@ -107,18 +123,20 @@ def fuse(rule: str, alpha: np.ndarray, c_max: float, construction: str) -> Predi
         return Prediction(r.p.numpy(), r.u.numpy(), log_probs=lp)
     if rule == "ds":
         r = dempster_shafer(a, c_max=c_max, construction=construction)
-        return Prediction(r.p.numpy(), r.u.numpy(), r.conflict.amax(dim=0).numpy(), r.fallback.numpy())
+        if r.fallback is None:
+            raise ValueError("dempster_shafer returned no fallback record")
+        return Prediction(r.p.numpy(), r.u.numpy(), _conflict(r).amax(dim=0).numpy(), r.fallback.numpy())
     if rule == "yager":
         r = yager(a, construction=construction)
-        return Prediction(r.p.numpy(), r.u.numpy(), r.conflict.amax(dim=0).numpy())
+        return Prediction(r.p.numpy(), r.u.numpy(), _conflict(r).amax(dim=0).numpy())
     if rule == "discounted":
         r = discounted_belief_fusion(a, construction=construction)
-        return Prediction(r.p.numpy(), r.u.numpy(), r.conflict.amax(dim=0).numpy())
+        return Prediction(r.p.numpy(), r.u.numpy(), _conflict(r).amax(dim=0).numpy())
     raise ValueError(f"unknown fusion rule {rule!r}")
 
 
 def gated_ds(alpha: np.ndarray, params: GateParams, clip_ids: np.ndarray, c_max: float,
-             construction: str) -> Prediction:
+             construction: Construction) -> Prediction:
     """DS with the hysteresis gate simulated per clip (rows in time order within each clip)."""
     a = torch.from_numpy(alpha)
     u_mod = (2.0 / alpha.sum(-1))
@@ -143,14 +161,15 @@ def gated_ds(alpha: np.ndarray, params: GateParams, clip_ids: np.ndarray, c_max:
 
 
 def predict_condition(cond: Condition, models: Models, out: Outputs, clip_ids: np.ndarray, c_max: float,
-                      construction: str, gate: GateParams | None) -> Prediction:
+                      construction: Construction, gate: GateParams | None) -> Prediction:
     """The condition's prediction from cached outputs of its input variant."""
     if cond.rule in ("sigmoid", "sigmoid_temp"):
-        m = MODALITIES.index(cond.modality)
-        t = models.temperatures.get(cond.modality, 1.0) if cond.rule == "sigmoid_temp" else 1.0
+        modality = _modality(cond)
+        m = MODALITIES.index(modality)
+        t = models.temperatures.get(modality, 1.0) if cond.rule == "sigmoid_temp" else 1.0
         return _from_logit(out.logit[m] / t)
     if cond.rule == "edl":
-        al = out.alpha[MODALITIES.index(cond.modality)]
+        al = out.alpha[MODALITIES.index(_modality(cond))]
         return Prediction(al / al.sum(-1, keepdims=True), 2.0 / al.sum(-1), log_probs=_alpha_log_probs(al))
     if cond.rule in ("late", "late_clean"):
         lp = _late_log_probs(models, out, cond.rule == "late_clean")
@@ -173,7 +192,7 @@ def entropy(probs: np.ndarray) -> np.ndarray:
     return -(p * np.log(p)).sum(axis=1)
 
 
-def _safe(v: float) -> float | None:
+def _safe(v: float | None) -> float | None:
     return None if v is None or not np.isfinite(v) else float(v)
 
 
@@ -198,8 +217,8 @@ def metrics_of(pred: Prediction, labels: np.ndarray, ece_bins: int) -> dict[str,
     return {k: _safe(v) if isinstance(v, float) else v for k, v in out.items()}
 
 
-def choose_gate(alpha_val: np.ndarray, y_val: np.ndarray, clip_ids_val: np.ndarray, grid, max_drop: float,
-                construction: str) -> tuple[GateParams, dict]:
+def choose_gate(alpha_val: np.ndarray, y_val: np.ndarray, clip_ids_val: np.ndarray, grid: GateConfig,
+                max_drop: float, construction: Construction) -> tuple[GateParams, dict]:
     """Gate operating point chosen on the validation split only (see GateConfig)."""
     from evids.gating import sweep_gates
 
