@@ -3,6 +3,7 @@ program's realised effect and every fusion rule's accuracy under it (conflict.js
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 import torch
@@ -23,7 +24,7 @@ def _majority(alpha: np.ndarray) -> np.ndarray:
 
 def _rule_preds(ctx: Context, run: int, out: Outputs, cid: np.ndarray) -> dict[str, np.ndarray]:
     cfg = ctx.cfg
-    preds = {rule: predict_condition(Condition(rule, rule, "conflict", rule), ctx.models[run], out, cid,
+    preds = {rule: predict_condition(Condition(rule, rule, "conflict", rule), ctx.trained[run], out, cid,
                                      cfg.fusion.c_max, cfg.fusion.construction, None).probs.argmax(1)
              for rule in FUSION_RULES}
     preds["majority_vote"] = _majority(out.alpha)
@@ -38,22 +39,22 @@ def _swap_program(ctx: Context, prog) -> dict:
     desc, kind, mods = swap_program(prog.name)
     by_id = {c.clip_id: k for k, c in enumerate(ctx.prep.clips)}
     want = 0 if kind == "blind" else 1
-    items = [(i, by_id[ctx.prep.clips[i].twin]) for i in ctx.test
-             if ctx.prep.clips[i].label == want and ctx.prep.clips[i].twin in by_id]
+    items = [(i, by_id[twin]) for i in ctx.test
+             if ctx.prep.clips[i].label == want and (twin := ctx.prep.clips[i].twin) is not None and twin in by_id]
     base = {"program": prog.key, "name": prog.name, "strength": prog.strength, "kind": kind,
             "modalities": list(mods), "description": desc}
     if not items:
         return {**base, "n_targeted": 0, "status": "not run: no test clip of this kind has a twin"}
-    parts, targ, y, cid, scn = [], [], [], [], []
+    parts, targ, ys, cids, scns = [], [], [], [], []
     for i, j in items:
         clip, donor = ctx.prep.clips[i], ctx.prep.clips[j]
         w = program_window(clip.n_segments, cc.onset_fraction, cc.duration_fraction)
         parts.append(swap_clip(clip, donor, mods, prog.strength, w, ctx.prep.rf_range_db))
         targ.append(targeted_segments(clip, donor, kind, mods, w))
-        y.append(np.full(clip.n_segments, clip.label))
-        cid.append(np.full(clip.n_segments, clip.clip_id, dtype=object))
-        scn.append(np.full(clip.n_segments, clip.scene, dtype=object))
-    T, y, cid, scn = np.concatenate(targ), np.concatenate(y), np.concatenate(cid), np.concatenate(scn)
+        ys.append(np.full(clip.n_segments, clip.label))
+        cids.append(np.full(clip.n_segments, clip.clip_id, dtype=object))
+        scns.append(np.full(clip.n_segments, clip.scene, dtype=object))
+    T, y, cid, scn = np.concatenate(targ), np.concatenate(ys), np.concatenate(cids), np.concatenate(scns)
     if not T.any():
         return {**base, "n_clips": len(items), "n_targeted": 0,
                 "status": "not run: no test segment where the drone clip's sensor observes the drone"}
@@ -63,15 +64,16 @@ def _swap_program(ctx: Context, prog) -> dict:
     pos = {i: k for k, i in enumerate(ctx.test)}
     rows = np.concatenate([np.arange(offsets[pos[i]], offsets[pos[i] + 1]) for i, _ in items])
     m_idx = [MODALITIES.index(m) for m in mods]
-    flips, conf, C, FB, acc, dis = [], [], [], [], {}, []
-    dis_acc = {"ds": [], "average": []}
+    flips, conf, C, FB, dis = [], [], [], [], []
+    acc: dict[str, list[float | None]] = {}
+    dis_acc: dict[str, list[float | None]] = {"ds": [], "average": []}
     where = []
     runs_c: list[dict[str, np.ndarray]] = []        # per training run: each rule's correctness on T
     for run in ctx.runs:
         full = ctx.outputs("clean", 0, run=run)
         clean = Outputs(full.logit[:, rows], full.alpha[:, rows], full.emb[:, rows])
         out = clean
-        swapped = encode(ctx.models[run], *x, only=tuple(mods))
+        swapped = encode(ctx.trained[run], *x, only=tuple(mods))
         for m in m_idx:
             out = out.replace(m, swapped)
         v_clean = clean.alpha[m_idx].argmax(-1)[:, T]             # (k, n_targeted)
@@ -80,6 +82,8 @@ def _swap_program(ctx: Context, prog) -> dict:
         p_prog = out.alpha[m_idx] / out.alpha[m_idx].sum(-1, keepdims=True)
         conf.append(float(p_prog[..., 1 - want][:, T].mean()))    # probability of the WRONG class
         ds = fuse("ds", out.alpha, cfg.fusion.c_max, cfg.fusion.construction)
+        if ds.conflict is None or ds.fallback is None:
+            raise ValueError("the DS prediction has no conflict or fallback record")
         C.append(ds.conflict[T])
         FB.append(ds.fallback[T])
         preds = _rule_preds(ctx, run, out, cid)
@@ -168,10 +172,10 @@ def _legacy_program(ctx: Context, program: str) -> dict:
                              cc.severity, ctx.prep.rf_range_db)
         degs.append(d)
         flags.append(f)
-    out = encode(ctx.models[0], np.concatenate([d.mfcc for d in degs]), np.concatenate([d.video for d in degs]),
+    out = encode(ctx.trained[0], np.concatenate([d.mfcc for d in degs]), np.concatenate([d.video for d in degs]),
                  np.concatenate([d.rf for d in degs]))
     clean = ctx.outputs("clean", 0)
-    res = {"program": program, "kind": "legacy"}
+    res: dict[str, Any] = {"program": program, "kind": "legacy"}
     for m, modality in enumerate(MODALITIES):
         comp = np.concatenate([f["compromised"][modality] for f in flags])
         if comp.any():

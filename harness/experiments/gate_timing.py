@@ -3,6 +3,7 @@ streaming with the hysteresis gate against the projected one (gate.json, gate_sw
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 import torch
@@ -16,11 +17,11 @@ from harness.runfolder import mark_stage, write_csv, write_json
 
 
 def _time_stream(ctx: Context, x: dict[str, np.ndarray], cid: np.ndarray, params: GateParams | None,
-                 repeats: int) -> dict:
+                 repeats: int) -> dict[str, Any]:
     """Stream the test segments one at a time (batch 1, as a live system) and time the encoders."""
-    models = [ctx.models[0].unimodal[(m, "evidential")] for m in MODALITIES]
+    models = [ctx.trained[0].unimodal[(m, "evidential")] for m in MODALITIES]
     tensors = [torch.from_numpy(np.ascontiguousarray(x[m])) for m in MODALITIES]
-    best = None
+    best: dict[str, Any] | None = None
     for _ in range(repeats):
         gate = HysteresisGate(3, params) if params is not None else None
         enc_s = np.zeros(3)
@@ -53,6 +54,8 @@ def _time_stream(ctx: Context, x: dict[str, np.ndarray], cid: np.ndarray, params
         rec = {"total_s": total, "encoder_s": enc_s.tolist(), "encoder_runs": runs.tolist()}
         if best is None or total < best["total_s"]:
             best = rec
+    if best is None:
+        raise ValueError(f"repeats must be >= 1, got {repeats}")
     return best
 
 
@@ -71,11 +74,14 @@ def stage_gate(ctx: Context) -> dict:
     x = {"audio": np.concatenate([p.mfcc for p in parts]), "video": np.concatenate([p.video for p in parts]),
          "rf": np.concatenate([p.rf for p in parts])}
     _time_stream(ctx, {k: v[:8] for k, v in x.items()}, cid[:8], None, 1)        # warm-up
-    ungated = gated = None
+    ungated: dict[str, Any] | None = None
+    gated: dict[str, Any] | None = None
     for _ in range(g.timing_repeats):          # alternate the two so neither profits from running second
         u_run, g_run = _time_stream(ctx, x, cid, None, 1), _time_stream(ctx, x, cid, params, 1)
         ungated = u_run if ungated is None or u_run["total_s"] < ungated["total_s"] else ungated
         gated = g_run if gated is None or g_run["total_s"] < gated["total_s"] else gated
+    if ungated is None or gated is None:
+        raise ValueError(f"gate.timing_repeats must be >= 1, got {g.timing_repeats}")
     n = len(cid)
     per_seg = np.array(ungated["encoder_s"]) / n
     skip = 1.0 - np.array(gated["encoder_runs"]) / n

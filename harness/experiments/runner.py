@@ -100,6 +100,13 @@ class Context:
     def runs(self) -> range:
         return range(len(self.models or []))
 
+    @property
+    def trained(self) -> list[Models]:
+        """Every training run's models; an error for a run opened without them (``need_models=False``)."""
+        if self.models is None:
+            raise ValueError(f"{str(self.run_dir)!r} was opened without its trained models")
+        return self.models
+
     def has_iq(self) -> bool:
         return self.prep.rf_config is not None and all(self.prep.clips[i].iq is not None for i in self.test)
 
@@ -144,7 +151,7 @@ class Context:
 
         def encoded() -> tuple:
             x = self.store.degraded_inputs(InputsKey(modality, seed, split, desc), degraded)
-            return encode_modality(self.models[run], modality, x)
+            return encode_modality(self.trained[run], modality, x)
 
         return self.store.modality_outputs(ModalityKey(modality, seed, split, run, desc), encoded)
 
@@ -239,7 +246,7 @@ def _fusion_job(k: int) -> tuple:
 
 
 def _aggregate(per_seed: list[dict]) -> dict:
-    out = {}
+    out: dict[str, float | None] = {}
     for k in per_seed[0]:
         vals = [r[k] for r in per_seed if r.get(k) is not None]
         if vals:
@@ -383,19 +390,22 @@ def stage_evaluate(ctx: Context) -> dict:
     mean_correct = {k: np.mean(v, axis=0) for k, v in correct.items()}
     comps = [compare(ctx, name, mean_correct[a], mean_correct[b], scn, comparison_id(a, b))
              for a, b, name in COMPARISONS if a in mean_correct and b in mean_correct]
+    arrays = {"labels": y, "clip_ids": cid.astype(str), "scene_ids": scn.astype(str),
+              **{f"{k}__probs": p.probs for k, p in preds0.items()},
+              **{f"{k}__vacuity": p.vacuity for k, p in preds0.items() if p.vacuity is not None},
+              **{f"{k}__conflict": p.conflict for k, p in preds0.items() if p.conflict is not None}}
     with atomic_path(ctx.run_dir / "predictions.npz", suffix=".npz") as tmp:
-        np.savez_compressed(tmp, labels=y, clip_ids=cid.astype(str), scene_ids=scn.astype(str),
-                            **{f"{k}__probs": p.probs for k, p in preds0.items()},
-                            **{f"{k}__vacuity": p.vacuity for k, p in preds0.items() if p.vacuity is not None},
-                            **{f"{k}__conflict": p.conflict for k, p in preds0.items() if p.conflict is not None})
+        # mypy matches a **dict of arrays against the stub's allow_pickle: bool keyword too
+        np.savez_compressed(tmp, **arrays)  # type: ignore[arg-type]
     temps = [{"run": k, **{f"T_{n}": v for n, v in m.temperatures.items()},
-              **{f"bound_{n}": f for n, f in m.temperature_flags.items()}} for k, m in enumerate(ctx.models)]
+              **{f"bound_{n}": f for n, f in m.temperature_flags.items()}} for k, m in enumerate(ctx.trained)]
     rf_drop = None
     rows_by = {r["key"]: r for r in rows}
     if "a_edl_rf" in rows_by:
         clean_rf = _clean_unimodal(ctx, "rf", y)
-        noisy = _noisy_unimodal(ctx, "rf", y)
-        rf_drop = {"clean": clean_rf, "rf_spec_noise": noisy, "drop": None if noisy is None else clean_rf - noisy,
+        noisy_rf = _noisy_unimodal(ctx, "rf", y)
+        rf_drop = {"clean": clean_rf, "rf_spec_noise": noisy_rf,
+                   "drop": None if noisy_rf is None else clean_rf - noisy_rf,
                    "noise": [e.model_dump(mode="json") for e in cfg.protocol.rf_spec]}
     result = {"conditions": rows, "skipped": skipped, "bootstrap": comps, "comparisons": comps,
               "gate_condition_f": gate_info, "noise_protocol": cfg.protocol.model_dump(mode="json"),
@@ -426,7 +436,7 @@ def _evaluate_group(group: tuple, extra: tuple) -> tuple[tuple, list]:
             for c in conds:
                 if c.variant != variant:
                     continue
-                pred = predict_condition(c, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction, gate)
+                pred = predict_condition(c, ctx.trained[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction, gate)
                 m = metrics_of(pred, y, cfg.ece_bins)
                 m.update({"run": run, "noise_seed": seed})
                 first = seed == cfg.protocol.noise_seeds[0] and run == 0
@@ -494,7 +504,7 @@ def _sweep_job(job: tuple, extra: tuple) -> tuple[tuple, list[dict]]:
         for rule in (*FUSION_RULES, *SWEEP_HEADS):
             head = SWEEP_HEADS.get(rule)        # a unimodal row: the swept modality's own head
             cond = Condition(rule, rule, "sweep", head or rule, modality if head else None)
-            pred = predict_condition(cond, ctx.models[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction,
+            pred = predict_condition(cond, ctx.trained[run], out, cid, cfg.fusion.c_max, cfg.fusion.construction,
                                      None)
             m = metrics_of(pred, y, cfg.ece_bins)
             per.setdefault(rule, []).append({k: m[k] for k in ("accuracy", "macro_f1", "ece", "uauc_entropy",
