@@ -25,6 +25,7 @@ flags a shortcut: something other than the target differs between the classes.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -100,7 +101,7 @@ def _rows(clips: list[ClipArrays], idx: list[int], feature: str, counterfactual:
         c = clips[i]
         src = c
         if counterfactual:
-            src = by_id.get(c.twin, c) if c.label == 0 else c
+            src = by_id.get(c.twin, c) if c.label == 0 and c.twin is not None else c
             keep = np.ones(c.n_segments, bool)
         else:
             keep = blind_rows(c, modality)
@@ -155,7 +156,7 @@ def audit_clips(clips: list[ClipArrays], split: dict[str, list[int]], settings: 
     by_id = {c.clip_id: c for c in clips}
     used = split["train"] + split["test"]
     has_twins = all(clips[i].twin in by_id for i in used if clips[i].label == 0)
-    out = []
+    out: list[dict[str, Any]] = []
     variants = ("observed", "twin_counterfactual") if has_twins else ("observed",)
     for variant in variants:
         for feature in FEATURES:

@@ -5,8 +5,10 @@ when present, and split clips (stratified by label, seeded) into train/val/test.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,6 +16,9 @@ from evids.modalities import OBSERVABILITY_KEY
 from harness.experiments.config import DatasetConfig, SplitConfig
 from scenes.errors import UserInputError
 from simulator.seeding import STREAMS
+
+if TYPE_CHECKING:
+    from simulator.formats.trident import TridentSegment
 
 SPLITS = ("train", "val", "test")
 
@@ -91,6 +96,8 @@ def ensure_dataset(cfg: DatasetConfig, run_dir: Path, progress: bool = True) -> 
         return root, True  # complete (or written before manifests said so); an unfinished one is resumed
     from simulator.dataset.trident import generate_trident, load_trident_config
 
+    if cfg.generate is None:       # DatasetConfig holds exactly one of path and generate
+        raise UserInputError("dataset: give dataset.generate (a generation config) or dataset.path (a folder)")
     gen = load_trident_config(cfg.generate)
     if cfg.clip_duration_s is not None:
         gen = gen.model_copy(update={"clip_duration_s": cfg.clip_duration_s})
@@ -101,11 +108,19 @@ def ensure_dataset(cfg: DatasetConfig, run_dir: Path, progress: bool = True) -> 
     return root, True
 
 
+def _observability(seg: TridentSegment) -> dict[str, bool]:
+    """A segment's observability record (a clip's segments have one each, or none has)."""
+    if seg.observability is None:
+        raise UserInputError(f"clip {seg.clip_id}: segment {seg.segment_index} has no observability record "
+                             "while the clip's first segment has one")
+    return seg.observability
+
+
 def load_clips(root: Path, progress: bool = True) -> list[ClipArrays]:
     """Every clip under a TRIDENT-layout root, through the shared loader."""
     import soundfile
 
-    from simulator.formats.trident import TridentDataset, load_iq
+    from simulator.formats.trident import ClipFiles, TridentDataset, load_iq
 
     root = Path(root)
     try:
@@ -114,7 +129,7 @@ def load_clips(root: Path, progress: bool = True) -> list[ClipArrays]:
         raise UserInputError(str(exc)) from None
     if not ds.clips:
         raise UserInputError(f"dataset {str(root)!r} holds no complete clips (audio + video + rf)")
-    items = ds.clips
+    items: Iterable[ClipFiles] = ds.clips
     if progress:
         from rich.progress import track
 
@@ -129,7 +144,8 @@ def load_clips(root: Path, progress: bool = True) -> list[ClipArrays]:
         iq = None if iq is None else iq[: len(segs)]
         obs = {}
         if segs[0].observability is not None:
-            obs = {k: np.array([s.observability[k] for s in segs]) for k in OBSERVABILITY_KEY.values()}
+            truth = [_observability(s) for s in segs]
+            obs = {k: np.array([t[k] for t in truth]) for k in OBSERVABILITY_KEY.values()}
         info = _clip_info(clip, len(segs))
         out.append(ClipArrays(
             clip_id=clip.clip_id, label=int(segs[0].label),

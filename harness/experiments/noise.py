@@ -4,6 +4,7 @@ and conflict programs through :func:`degradations.spec.apply_spec`. Every draw i
 ``SeedSequence([noise_seed, clip_index, stream])``."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,8 +52,9 @@ class Degraded:
     rf: np.ndarray
 
 
-def degrade_clip(clip: ClipArrays, clip_index: int, noise_seed: int, *, audio: list[NoiseEntry] = (),
-                 video: list[NoiseEntry] = (), rf_spec: list[NoiseEntry] = (), rf_iq: list[NoiseEntry] = (),
+def degrade_clip(clip: ClipArrays, clip_index: int, noise_seed: int, *, audio: Sequence[NoiseEntry] = (),
+                 video: Sequence[NoiseEntry] = (), rf_spec: Sequence[NoiseEntry] = (),
+                 rf_iq: Sequence[NoiseEntry] = (),
                  rf_range_db: float = 60.0, rf_config: dict | None = None) -> Degraded:
     """The clip's (mfcc, video, rf) with the listed degradations; untouched streams are the clean arrays."""
     from simulator.formats.trident import mfcc_segments
