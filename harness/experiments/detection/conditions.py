@@ -20,9 +20,16 @@ import numpy as np
 import torch
 from scipy.optimize import linear_sum_assignment
 
-from evids.fusion import average, dempster_shafer
+from evids.fusion import FusionResult, average, dempster_shafer
 from evids.models.detector import DetectorOutput, decode_peaks
 from harness.experiments.detection.tracking import FrameDetections
+
+
+def _conflict(res: FusionResult) -> torch.Tensor:
+    """Dempster's conflict per fold step (dempster_shafer always returns it)."""
+    if res.conflict is None:
+        raise ValueError("dempster_shafer returned no conflict term")
+    return res.conflict
 
 
 @dataclass
@@ -40,6 +47,8 @@ class StreamMaps:
 
     @property
     def vacuity(self) -> torch.Tensor:
+        if self.alpha is None:
+            raise ValueError("vacuity needs an evidential detector's alpha maps (these are a sigmoid detector's)")
         return 2.0 / self.alpha.sum(-1)
 
 
@@ -88,7 +97,7 @@ def fuse_maps(rgb: StreamMaps, thermal: StreamMaps, rule: str, available: np.nda
         conflict = torch.zeros_like(res.u)
     elif rule == "ds":
         res = dempster_shafer(a, available=mask)
-        conflict = res.conflict.amax(0)
+        conflict = _conflict(res).amax(0)
     else:
         raise ValueError(f"rule must be 'average' or 'ds', got {rule!r}")
     return res.p[..., 0].to(torch.float32), res.u.to(torch.float32), conflict.to(torch.float32)
@@ -156,7 +165,7 @@ def fused_matched(rgb: StreamMaps, thermal: StreamMaps, rule: str, floor: float,
         al = torch.tensor([alphas_r, alphas_t], dtype=torch.float64)
         m = torch.tensor(avail).T
         res = average(al, available=m) if rule == "average" else dempster_shafer(al, available=m)
-        conflict = np.zeros(len(boxes)) if rule == "average" else res.conflict.amax(0).numpy()
+        conflict = np.zeros(len(boxes)) if rule == "average" else _conflict(res).amax(0).numpy()
         p, u = res.p[:, 0].numpy(), res.u.numpy()
         order = np.argsort(-p, kind="stable")[:k]
         keep = order[p[order] >= floor]

@@ -71,6 +71,8 @@ def condition_dets(seq: SequenceData, maps: dict[str, StreamMaps], cfg: Detectio
             dets[f"{c}/fused"] = single_stream(maps["fusion_sigmoid"], floor, k)
         elif c == "h_feature_fusion_ts" and temperature is not None:
             fm = maps["fusion_sigmoid"]
+            if fm.logit is None:
+                raise ValueError("condition h_feature_fusion_ts needs the feature-fusion detector's logits")
             z = fm.logit / temperature
             dets[f"{c}/fused"] = single_stream(StreamMaps(torch.sigmoid(z), fm.box, None, z), floor, k)
     extra: dict[str, Any] = {"gate": gate_info}

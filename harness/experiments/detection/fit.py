@@ -2,6 +2,8 @@
 tau_high and the feature-fusion temperature (nothing here sees the test split)."""
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from harness.experiments.detection.config import DetectionConfig
@@ -19,7 +21,7 @@ def _seq_state(frames: list[FrameDetections], gt: list, det_thr: float, theta: f
 
 
 def fit_tracking(val: list[tuple[SequenceData, dict]], key: str, cfg: DetectionConfig,
-                 tau_det_grid: bool = False) -> dict[str, float]:
+                 tau_det_grid: bool = False) -> dict[str, Any]:
     """Grid search on val for the detection threshold and the tracker's switching threshold theta
     (and tau_det for condition (c)), maximising mean per-sequence state accuracy."""
     det_grid = [0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9]
@@ -28,7 +30,7 @@ def fit_tracking(val: list[tuple[SequenceData, dict]], key: str, cfg: DetectionC
     qs = np.unique(np.quantile(unc_all, [0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 1.0])) if unc_all.size else np.array([1.0])
     theta_grid = [float(q) + 1e-9 for q in qs] if cfg.tracker.theta is None else [cfg.tracker.theta]
     tau_grid = [None] + ([float(q) + 1e-9 for q in qs] if tau_det_grid else [])
-    best = {"score": -1.0}
+    best: dict[str, Any] = {"score": -1.0}
     for d in det_grid:
         for th in theta_grid:
             for tau in tau_grid:
@@ -43,7 +45,7 @@ def fit_tracking(val: list[tuple[SequenceData, dict]], key: str, cfg: DetectionC
 
 
 def fit_gate(val: list[tuple[SequenceData, dict]], val_maps: list[dict], cfg: DetectionConfig,
-             track_fit: dict) -> dict[str, float]:
+             track_fit: dict) -> dict[str, Any]:
     """tau_high from the val distribution of per-frame stream vacuity: the quantile (grid) that
     maximises val state accuracy of (f), with (e)'s fitted tracking thresholds."""
     if cfg.gate.tau_high is not None:
@@ -51,7 +53,7 @@ def fit_gate(val: list[tuple[SequenceData, dict]], val_maps: list[dict], cfg: De
                 "fitted_on": "config"}
     u = np.concatenate([np.concatenate([o["extra"]["frame_u"]["rgb"], o["extra"]["frame_u"]["thermal"]])
                         for _, o in val])
-    best = {"score": -1.0}
+    best: dict[str, Any] = {"score": -1.0}
     for q in (0.5, 0.7, 0.8, 0.9, 0.95, 0.99):
         tau_high = float(min(np.quantile(u, q), 1.0))
         gate = {"tau_high": tau_high, "tau_low": tau_high * cfg.gate.tau_low_fraction}

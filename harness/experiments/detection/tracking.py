@@ -82,7 +82,9 @@ class SwitchingTracker:
     def step(self, dets: FrameDetections) -> TrackStep:
         """Advance one frame with this frame's detections."""
         if self._kf is not None:
-            kf = self._kf
+            kf, size = self._kf, self._size
+            if size is None:
+                raise RuntimeError("tracker state: a Kalman filter without a box size")
             kf.predict()
             pred = kf.x[:2]
             if dets.boxes.shape[0]:
@@ -93,11 +95,10 @@ class SwitchingTracker:
                 j = int(cols[0])
                 if cost[0, j] < 1e6 and dets.uncertainty[j] < self.theta:
                     kf.update(centres[j])
-                    self._size = 0.5 * self._size + 0.5 * dets.boxes[j, 2:]
+                    self._size = size = 0.5 * size + 0.5 * dets.boxes[j, 2:]
                     cx, cy = kf.x[:2]
-                    box = [float(cx - self._size[0] / 2), float(cy - self._size[1] / 2), float(self._size[0]),
-                           float(self._size[1])]
-                    return TrackStep(box, float(dets.scores[j]), "tracker", False, self.track_id)
+                    tracked = [float(cx - size[0] / 2), float(cy - size[1] / 2), float(size[0]), float(size[1])]
+                    return TrackStep(tracked, float(dets.scores[j]), "tracker", False, self.track_id)
             self._kf = None
             box, score = self._redetect(dets)
             return TrackStep(box, score, "detector", True, self.track_id)

@@ -9,18 +9,24 @@ from typing import Any
 import numpy as np
 import torch
 
-from evids.models.backbones import seeded_init
+from evids.models.backbones import HeadKind, seeded_init
 from evids.models.detector import CentreDetector, FeatureFusionDetector, detection_loss, encode_targets
 from harness.experiments.detection.data import SequenceData, rng, sample_crops
 
 MODEL_IDS = {"rgb_sigmoid": 1, "thermal_sigmoid": 2, "rgb_evidential": 3, "thermal_evidential": 4, "fusion_sigmoid": 5}
+#: the single-stream detectors: name -> (input channels, head)
+STREAM_MODELS: dict[str, tuple[int, HeadKind]] = {"rgb_sigmoid": (3, "sigmoid"), "thermal_sigmoid": (1, "sigmoid"),
+                                                  "rgb_evidential": (3, "evidential"),
+                                                  "thermal_evidential": (1, "evidential")}
 
 
 def build_model(name: str, width: int) -> torch.nn.Module:
     if name == "fusion_sigmoid":
         return FeatureFusionDetector(width)
-    stream, head = name.split("_")
-    return CentreDetector(3 if stream == "rgb" else 1, head, width)
+    if name not in STREAM_MODELS:
+        raise ValueError(f"unknown model {name!r}; valid: {sorted(MODEL_IDS)}")
+    channels, head = STREAM_MODELS[name]
+    return CentreDetector(channels, head, width)
 
 
 def train_model(name: str, seqs: list[SequenceData], cfg, log=None) -> tuple[torch.nn.Module, dict[str, Any]]:
