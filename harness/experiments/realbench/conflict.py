@@ -19,11 +19,14 @@ Dempster's rule with the c_max fallback, discounted belief fusion and the averag
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from harness.experiments.realbench import stats
+
+if TYPE_CHECKING:
+    from evids.heads import Construction
 
 NOT_SYNCHRONISED = ("The benchmark's sensors are not synchronised; each real triplet is one IR, one visible and "
                     "one audio clip of the same class drawn independently, not a multi-modal recording.")
@@ -118,7 +121,7 @@ def draw_triplets(tables: dict[str, dict[str, Any]], n: int, synchronised: bool,
     sensors = [s for s in SENSORS if s in tables]
     visual = [s for s in sensors if s != "audio"]
     classes = sorted({str(c) for s in (visual or sensors) for c in tables[s]["cls"]})
-    pools: dict[str, list[dict[str, np.ndarray]]] = {}
+    pools: dict[str, list[dict[str, Any]]] = {}     # each: {"cls": the class, sensor: clip indices}
     for cls in classes:
         pool = {s: np.flatnonzero(tables[s]["cls"] == _sensor_class(s, cls)) for s in sensors}
         if synchronised and len(visual) == 2:
@@ -158,7 +161,8 @@ def draw_twins(table: dict[str, Any], label: np.ndarray, rng: np.random.Generato
 # Fusion and metrics
 
 
-def fuse(ops: np.ndarray, c_max: float, construction: str = "canonical") -> tuple[dict[str, np.ndarray], np.ndarray]:
+def fuse(ops: np.ndarray, c_max: float,
+         construction: Construction = "canonical") -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Fused votes of every rule (n,) for opinions (M, n, 3), and Dempster's conflict (largest fold step)."""
     import torch
 
@@ -166,13 +170,15 @@ def fuse(ops: np.ndarray, c_max: float, construction: str = "canonical") -> tupl
 
     a = torch.from_numpy(to_alpha(ops))
     ds = dempster_shafer(a, construction=construction)
+    if ds.conflict is None:
+        raise ValueError("dempster_shafer returned no conflict term")
     out = {"ds": ds.p, "ds_c_max": dempster_shafer(a, c_max=c_max, construction=construction).p,
            "discounted": discounted_belief_fusion(a, construction=construction).p, "average": average(a).p}
     return {k: v.argmax(-1).numpy() for k, v in out.items()}, ds.conflict.amax(dim=0).numpy()
 
 
 def program_rows(ops: np.ndarray, m: int, twin: np.ndarray, label: np.ndarray, c_max: float,
-                 construction: str = "canonical",
+                 construction: Construction = "canonical",
                  clean: tuple[dict[str, np.ndarray], np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """Per-triplet indicators of program "blind sensor m" (its opinion replaced by ``twin`` (n, 3)):
     the compromised sensor's vote flip, DS conflict clean and under the program, and per rule the
@@ -212,7 +218,8 @@ def _ci(b: np.ndarray) -> dict[str, float]:
 
 
 def domain_study(tables: dict[str, dict[str, Any]], cond: str, trip: dict[str, Any], twins: dict[str, np.ndarray],
-                 w: np.ndarray, c_max: float, construction: str) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+                 w: np.ndarray, c_max: float,
+                 construction: Construction) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
     """One domain and reading: the clean fusion and every program's metrics; also each program's
     bootstrap arrays of the fused flip rate (for the real - synthetic difference)."""
     sensors = [s for s in SENSORS if s in tables]
@@ -246,7 +253,7 @@ def domain_study(tables: dict[str, dict[str, Any]], cond: str, trip: dict[str, A
 
 
 def run_conflict(tables: dict[str, dict[str, dict[str, Any]] | None], *, seed: int, n_triplets: int, n_boot: int,
-                 c_max: float, construction: str = "canonical") -> dict[str, Any]:
+                 c_max: float, construction: Construction = "canonical") -> dict[str, Any]:
     """The study over the sensors with a clip table (``tables[sensor][domain]`` from
     :func:`clip_opinions`), both domains and both readings (own-domain models (a)/(b), mixed (c))."""
     from simulator.seeding import rng_for

@@ -295,7 +295,7 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
     from harness.report.realbench import write_page
     from harness.runfolder import write_json
     from scenes.errors import UserInputError
-    from simulator.formats.svanstrom import open_benchmark
+    from simulator.formats.svanstrom import SENSORS, Sensor, open_benchmark
 
     t0 = time.time()
     run_json = sim2real_dir / "sim2real.json"
@@ -315,7 +315,8 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
                                "split_rule": "real: odd clip numbers = calibration half (train), even = evaluation "
                                              "half (reported); synthetic sequences and audio clips: odd = training, "
                                              "even = evaluation"}
-    sensors = [s for s in cfg.sensors if s in VISUAL_SENSORS and s in visual]
+    as_sensor: dict[str, Sensor] = {s: s for s in SENSORS}     # the config's names (validated) as Sensor values
+    sensors = [as_sensor[s] for s in cfg.sensors if s in VISUAL_SENSORS and s in visual]
     params = dict(frames_per_clip=vis.frames_per_real_clip, crop_px=vis.crop_px, context=vis.crop_context,
                   min_crop_px=vis.min_crop_px, seed=cfg.seed, keep=vis.detector_frames_per_clip)
     samples: list = []
