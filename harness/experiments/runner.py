@@ -410,8 +410,7 @@ def stage_evaluate(ctx: Context) -> dict:
     result = {"conditions": rows, "skipped": skipped, "bootstrap": comps, "comparisons": comps,
               "gate_condition_f": gate_info, "noise_protocol": cfg.protocol.model_dump(mode="json"),
               "temperatures": temps, "rf_noise_effect": rf_drop,
-              "video_by_size": _video_by_size(ctx, mean_correct["clean_video_edl"]) if "clean_video_edl" in mean_correct
-              else _video_by_size(ctx, _clean_correct(ctx, "video", y)),
+              "video_by_size": _video_by_size(ctx, _clean_correct(ctx, "video", y)),
               "observability": observability_summary(ctx),
               "majority_class_accuracy": float(max(np.mean(y == 0), np.mean(y == 1)))}
     write_json(ctx.run_dir / "evaluate.json", result)
