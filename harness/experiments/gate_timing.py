@@ -49,7 +49,7 @@ def _time_stream(ctx: Context, x: dict[str, np.ndarray], cid: np.ndarray, params
                     fuse_in = torch.stack(used)
                     from evids.fusion import dempster_shafer
 
-                    dempster_shafer(fuse_in, c_max=ctx.cfg.fusion.c_max)
+                    dempster_shafer(fuse_in, c_max=ctx.cfg.fusion.c_max, construction=ctx.cfg.fusion.construction)
         total = time.perf_counter() - t0
         rec = {"total_s": total, "encoder_s": enc_s.tolist(), "encoder_runs": runs.tolist()}
         if best is None or total < best["total_s"]:
