@@ -768,8 +768,9 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
         gains = (None, None)
         if directivity:
             gains = tuple(np.interp(samples, coarse, g) for g in rotor_directivity(mic_c - pos_c, up_c))
+        hover = getattr(track, "hover_rpm", None) or rotor_hover_rpm(track.kind, track.size_m)
         src = rotor_signature(rpm, max(int(track.n_blades), 1), ret, sample_rate_hz, rng, tonal_db, broad_db,
-                              rotor_hover_rpm(track.kind, track.size_m), sound_power_dba=power,
+                              hover, sound_power_dba=power,
                               tonal_gain=gains[0], broadband_gain=gains[1], noise=noise)
         if noise.amplitude_fluctuation_db > 0:
             fluctuation = _level_fluctuation(rng, n_samples, sample_rate_hz, noise.amplitude_fluctuation_db,

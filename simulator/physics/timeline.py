@@ -37,6 +37,7 @@ class TargetTrack:
     flap_phase_rad: np.ndarray      # (F,) birds; zeros otherwise
     part_temperature_k: dict[str, np.ndarray] = field(default_factory=dict)  # role -> (F,)
     n_blades: int = 0
+    hover_rpm: float | None = None  # rotors' hover speed when it differs from rotor_hover_rpm(kind, size_m)
 
     def position_at(self, times_s: np.ndarray, frame_times_s: np.ndarray) -> np.ndarray:
         """Linear interpolation of position at arbitrary times (for audio/RF sample clocks)."""
@@ -83,6 +84,49 @@ class Timeline:
     @property
     def n_frames(self) -> int:
         return int(self.times_s.size)
+
+
+def retuned_rotors(track: TargetTrack, hover_rpm: float, rpm_factor: np.ndarray | None = None) -> TargetTrack:
+    """A copy of a rotorcraft ``track`` whose rotors hover at ``hover_rpm`` instead of
+    :func:`rotor_hover_rpm` of its kind and size: every rotor speed (flight-state changes, detune and
+    fluctuation included) and the blade angle scale by the same factor, and ``hover_rpm`` is recorded
+    so the acoustic model's thrust reference follows (issue 24: the sim2real audio draws the blade-passing
+    frequency of the benchmark's drones instead of the size law). ``rpm_factor`` (F,), e.g.
+    :func:`manoeuvre_rpm_factor`, multiplies every rotor's speed per frame on top (the hover reference
+    stays ``hover_rpm``: a faster rotor is a thrust change)."""
+    import dataclasses
+
+    if not hover_rpm > 0:
+        raise ValueError(f"hover_rpm must be > 0, got {hover_rpm}")
+    law = rotor_hover_rpm(track.kind, track.size_m)
+    if not law > 0:
+        raise ValueError(f"kind: {track.kind!r} has no rotor to retune")
+    factor = float(hover_rpm) / law
+    rpm = np.asarray(track.rotor_rpm) * factor
+    if rpm_factor is not None:
+        per_frame = np.asarray(rpm_factor, dtype=np.float64).reshape(-1)
+        if per_frame.size != rpm.shape[0] or not np.all(per_frame > 0):
+            raise ValueError(f"rpm_factor: need {rpm.shape[0]} positive per-frame factors, got {per_frame.size}")
+        rpm = rpm * per_frame[:, None]
+    return dataclasses.replace(track, rotor_rpm=rpm, rotor_angle_rad=np.asarray(track.rotor_angle_rad) * factor,
+                               hover_rpm=float(hover_rpm))
+
+
+def manoeuvre_rpm_factor(rng: np.random.Generator, n_frames: int, frame_rate_hz: float, std: float,
+                         time_s: float) -> np.ndarray:
+    """Per-frame factor (F,) on every rotor's speed at once: 1 + a stationary Gauss-Markov (AR(1)) series of
+    relative std ``std`` and correlation time ``time_s``, floored at 0.5. A flying multirotor changes its
+    collective rotor speed with every climb, acceleration and gust correction; the zero-sum
+    :func:`rotor_rpm_fluctuation` (attitude) leaves the total thrust, hence the blade-passing line's mean, alone."""
+    if not (std >= 0 and time_s > 0 and frame_rate_hz > 0):
+        raise ValueError(f"need std >= 0, time_s > 0, frame_rate_hz > 0; got {std}, {time_s}, {frame_rate_hz}")
+    from scipy.signal import lfilter
+
+    a = float(np.exp(-1.0 / (frame_rate_hz * time_s)))
+    drive = rng.standard_normal(n_frames)
+    drive[0] /= np.sqrt(max(1.0 - a * a, 1e-12))                # start in the stationary distribution
+    x = lfilter([np.sqrt(1.0 - a * a)], [1.0, -a], drive)
+    return np.maximum(1.0 + std * x, 0.5)
 
 
 def rotor_hover_rpm(kind: str, size_m: float) -> float:

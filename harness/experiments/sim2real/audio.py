@@ -298,6 +298,19 @@ def _config_model():
         drone_range_m: list[Span] = Field(default=[(2.0, 12.0), (8.0, 50.0)], min_length=1,
                                           description="range spans, one picked uniformly per clip")
         drone_speed_mps: Span = (0.0, 10.0)
+        drone_bpf_hz: Span | None = Field(
+            default=(150.0, 190.0),
+            description="hover blade-passing frequency (Hz) drawn per drone clip, the rotors retuned to it "
+                        "(timeline.retuned_rotors); None: the simulator's size law (rotor_hover_rpm: 174-225 Hz "
+                        "at 0.3-0.5 m). The fit: the calibration half's drone line sits at 180 Hz [170, 183] "
+                        "(docs/SIM2REAL_AUDIO.md, fifth pass)")
+        drone_rpm_wander: Span | None = Field(
+            default=(0.04, 0.10),
+            description="relative std of a slow change of all rotors' speed at once (manoeuvres, gust "
+                        "corrections; timeline.manoeuvre_rpm_factor), drawn per drone clip; None: off. The fit: "
+                        "the calibration half's drone line stands 5.4 dB [4.3, 6.7] over its 60 Hz neighbourhood "
+                        "in a 10 s average, which the drawn tones reach at this wander (fifth pass)")
+        drone_rpm_wander_time_s: Span = Field(default=(0.5, 2.0), description="its correlation time")
         elevation_deg: Span = (3.0, 45.0)
         helicopter_range_m: Span = (50.0, 300.0)
         helicopter_height_m: Span = (30.0, 250.0)
@@ -306,10 +319,11 @@ def _config_model():
         helicopter_rpm: Span = (330.0, 420.0)
         helicopter_diameter_m: Span = (10.0, 16.0)
         rotor_noise: dict[str, Span] = Field(
-            default_factory=dict,
-            description="drone rotor-noise spans replacing those of acoustics.ROTOR_NOISE_RANGES, e.g. "
-                        "{broadband_low_hz: [30, 120]}; none by default (docs/SIM2REAL_AUDIO.md, fourth pass: the "
-                        "lower broadband edge adds 4 drone statistics but raises the LR's false alarms)")
+            default_factory=lambda: {"broadband_offset_db": (-2.0, 6.0), "harmonic_top_hz": (1000.0, 2500.0)},
+            description="drone rotor-noise spans replacing those of acoustics.ROTOR_NOISE_RANGES (the sim2real fit: "
+                        "blade-passing lines up to 1-2.5 kHz with the broadband -2..+6 dB re the tones instead of "
+                        "+10..+20, so the YIN fundamental and the 250 Hz dip between the first two lines of the real "
+                        "drones appear; docs/SIM2REAL_AUDIO.md, fifth pass)")
         helicopter: dict[str, Span] = Field(
             default_factory=lambda: {"turbine_hz": (7500.0, 11500.0), "broadband_tilt_db": (-9.0, -7.0),
                                      "tip_noise_db": (-16.0, -6.0)},
@@ -338,6 +352,13 @@ def _config_model():
                      "helicopter_rpm": self.helicopter_rpm, "helicopter_diameter_m": self.helicopter_diameter_m,
                      **{f"drone_size_m.{k}": v for k, v in self.drone_size_m.items()},
                      **{f"drone_range_m[{i}]": v for i, v in enumerate(self.drone_range_m)}}
+            floors = (("drone_bpf_hz", "> 0"), ("drone_rpm_wander", ">= 0"), ("drone_rpm_wander_time_s", "> 0"))
+            for name, floor in floors:
+                span = getattr(self, name)
+                if span is not None:
+                    spans[name] = span
+                    if span[0] < 0 or (span[0] == 0 and floor == "> 0"):
+                        raise ValueError(f"{name}: must be {floor}, got {span[0]}")
             for name, (lo, hi) in spans.items():
                 if lo > hi:
                     raise ValueError(f"{name}: low {lo} exceeds high {hi}")
@@ -442,6 +463,33 @@ def _helicopter_scenario(cfg, rng: np.random.Generator, name: str):
     return scenario, {"range_m": range_m, "speed_mps": speed, **rotor}
 
 
+def _retuned(cfg, timeline, rng: np.random.Generator):
+    """``timeline`` with every rotorcraft drone's rotors retuned (:func:`timeline.retuned_rotors`) to a hover
+    blade-passing frequency (blades x hover rpm / 60) drawn from ``cfg.drone_bpf_hz`` (None: the size law)
+    and, when ``cfg.drone_rpm_wander`` is set, a drawn manoeuvre wander of all rotors' speed
+    (:func:`timeline.manoeuvre_rpm_factor`). Both None: ``timeline`` unchanged, nothing drawn."""
+    import dataclasses
+
+    from scenes.kinds import DRONE_KINDS
+    from simulator.physics.timeline import manoeuvre_rpm_factor, retuned_rotors, rotor_hover_rpm
+
+    if cfg.drone_bpf_hz is None and cfg.drone_rpm_wander is None:
+        return timeline
+    targets = []
+    for t in timeline.targets:
+        if t.kind not in DRONE_KINDS or not t.n_blades:
+            targets.append(t)
+            continue
+        hover = (60.0 * uniform(rng, cfg.drone_bpf_hz) / int(t.n_blades) if cfg.drone_bpf_hz is not None
+                 else rotor_hover_rpm(t.kind, t.size_m))
+        factor = None
+        if cfg.drone_rpm_wander is not None:
+            std, time_s = uniform(rng, cfg.drone_rpm_wander), uniform(rng, cfg.drone_rpm_wander_time_s)
+            factor = manoeuvre_rpm_factor(rng, len(timeline.times_s), timeline.scenario.frame_rate_hz, std, time_s)
+        targets.append(retuned_rotors(t, hover, factor))
+    return dataclasses.replace(timeline, targets=targets)
+
+
 def helicopter_available() -> bool:
     """True when the acoustic model has a helicopter source."""
     from simulator.physics import acoustics
@@ -477,6 +525,7 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
             if cls == "DRONE":
                 scenario, _ = _drone_scenario(cfg, rng, f"synthetic_drone_{j:04d}")
                 timeline = build_timeline(scenario, clip_seed)
+                timeline = _retuned(cfg, timeline, rng)            # draws last: the draws before it stay put
                 mix = ac.synthesize_audio(timeline, clip_seed, ambience=ambience, duration_s=cfg.duration_s,
                                           sample_rate_hz=sr, rotor_noise_ranges=cfg.rotor_noise).mix_pa
             elif cls == "HELICOPTER":

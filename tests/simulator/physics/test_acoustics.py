@@ -421,3 +421,31 @@ def test_lower_rotor_broadband_edge_raises_the_low_bands_measured():
         return 10 * np.log10(spec[(f > 40) & (f < 80)].sum() / spec[(f > 2000) & (f < 4000)].sum())
 
     assert ratio_db(30.0) - ratio_db(300.0) > 10.0
+
+
+def test_retuned_rotors_move_the_blade_passing_line_and_keep_the_sound_power():
+    """A quad retuned to hover at 0.8 x the size law (timeline.retuned_rotors) has its blade-passing line
+    at 0.8 x the law's and, its thrust reference following, the same sound power; scaling the rotor
+    speeds without recording the hover rpm would read as a lighter flight state (~2 dB quieter)."""
+    import dataclasses
+
+    from simulator.physics.timeline import retuned_rotors, rotor_hover_rpm
+
+    mic = np.array([0.0, 0.0, 1.5])
+    law = rotor_hover_rpm("quadcopter", 0.45)
+    track, t = _hover_track("quadcopter", 0.45, [0.0, 10.0, 6.0], duration_s=1.2)
+    tuned = retuned_rotors(track, 0.8 * law)
+    stale = dataclasses.replace(tuned, hover_rpm=None)
+    out = {}
+    for name, tr in (("law", track), ("tuned", tuned), ("stale", stale)):
+        x, _ = ac.synthesize_target(tr, t, mic, FS, FS, 293.15, 0.7, rng_for(2, "acoustics", 0),
+                                    rotor_noise=ac.LEGACY_ROTOR_NOISE)
+        spec = np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2
+        f = np.fft.rfftfreq(x.size, 1.0 / FS)
+        band = (f > 100) & (f < 260)
+        out[name] = (f[band][np.argmax(spec[band])], _a_level_db(x[FS // 20:]))
+    bpf = 2 * law / 60.0
+    assert out["law"][0] == pytest.approx(bpf, rel=0.03)
+    assert out["tuned"][0] == pytest.approx(0.8 * bpf, rel=0.03)
+    assert abs(out["tuned"][1] - out["law"][1]) < 1.0
+    assert out["law"][1] - out["stale"][1] > 1.5

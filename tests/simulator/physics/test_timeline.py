@@ -92,3 +92,53 @@ def test_thermal_camera_offset_moves_and_turns_it():
     assert np.allclose(th.origin_m[0] - rgb.origin_m[0], 0.12 * right, atol=1e-9)
     angle = np.degrees(np.arccos(np.clip(np.dot(th.forward[0], rgb.forward[0]), -1, 1)))
     assert angle == pytest.approx(0.3, abs=1e-6)
+
+
+def test_retuned_rotors_scale_every_rotor_and_record_the_hover_rpm():
+    from simulator.physics.timeline import retuned_rotors
+
+    scenario = _with_trajectory("clear_day_quad", Hover(center_m=(0, 100, 20), drift_m=0.0))
+    track = build_timeline(scenario, 0).targets[0]
+    before = track.rotor_rpm.copy()
+    law = rotor_hover_rpm("quadcopter", track.size_m)
+    tuned = retuned_rotors(track, 4000.0)
+    assert tuned.hover_rpm == 4000.0 and track.hover_rpm is None
+    assert np.allclose(tuned.rotor_rpm.mean(axis=1), 4000.0, rtol=0.01)
+    assert np.allclose(tuned.rotor_rpm / before, 4000.0 / law)             # detune and fluctuation kept, scaled
+    assert np.allclose(tuned.rotor_angle_rad, track.rotor_angle_rad * 4000.0 / law)
+    assert np.array_equal(track.rotor_rpm, before)                           # the original track is untouched
+    with pytest.raises(ValueError, match="hover_rpm"):
+        retuned_rotors(track, 0.0)
+    bird = build_timeline(_with_trajectory("clear_day_quad", Hover(center_m=(0, 100, 20)), kind="bird"), 0).targets[0]
+    with pytest.raises(ValueError, match="no rotor"):
+        retuned_rotors(bird, 4000.0)
+
+
+def test_manoeuvre_rpm_factor_has_the_drawn_std_and_correlation_time():
+    from simulator.physics.timeline import manoeuvre_rpm_factor
+
+    a = manoeuvre_rpm_factor(rng_for(1, "trajectory", 7), 20000, 25.0, 0.05, 1.0)
+    assert np.array_equal(a, manoeuvre_rpm_factor(rng_for(1, "trajectory", 7), 20000, 25.0, 0.05, 1.0))
+    assert np.std(a) == pytest.approx(0.05, rel=0.1) and np.mean(a) == pytest.approx(1.0, abs=0.01)
+    x = a - a.mean()
+    lag = 25                                                    # one correlation time: autocorrelation e^-1
+    assert np.mean(x[:-lag] * x[lag:]) / np.var(x) == pytest.approx(np.exp(-1.0), abs=0.08)
+    assert np.all(manoeuvre_rpm_factor(rng_for(2, "trajectory", 7), 2000, 25.0, 0.8, 1.0) >= 0.5)    # floored
+    assert np.array_equal(manoeuvre_rpm_factor(rng_for(1, "trajectory", 7), 50, 25.0, 0.0, 1.0), np.ones(50))
+    with pytest.raises(ValueError):
+        manoeuvre_rpm_factor(rng_for(1, "trajectory", 7), 50, 25.0, 0.05, 0.0)
+
+
+def test_retuned_rotors_take_a_per_frame_factor_on_every_rotor():
+    from simulator.physics.timeline import retuned_rotors
+
+    scenario = _with_trajectory("clear_day_quad", Hover(center_m=(0, 100, 20), drift_m=0.0))
+    track = build_timeline(scenario, 0).targets[0]
+    factor = np.linspace(0.9, 1.1, track.rotor_rpm.shape[0])
+    plain, wandering = retuned_rotors(track, 4000.0), retuned_rotors(track, 4000.0, factor)
+    assert np.allclose(wandering.rotor_rpm, plain.rotor_rpm * factor[:, None])
+    assert wandering.hover_rpm == 4000.0                                   # the hover reference stays
+    with pytest.raises(ValueError, match="rpm_factor"):
+        retuned_rotors(track, 4000.0, factor[:-1])
+    with pytest.raises(ValueError, match="rpm_factor"):
+        retuned_rotors(track, 4000.0, -factor)

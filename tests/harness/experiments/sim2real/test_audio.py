@@ -99,7 +99,9 @@ def test_synthetic_clips_are_deterministic_per_seed_and_labelled():
                                         ({"drone_kinds": ["zeppelin"]}, "drone_kinds"),
                                         ({"duration_s": -1}, "duration_s"), ({"colour": 1}, "colour"),
                                         ({"rotor_noise": {"colour": [1.0, 2.0]}}, "rotor_noise.colour"),
-                                        ({"helicopter": {"tip_noise_db": [-6.0, -16.0]}}, "helicopter.tip_noise_db")])
+                                        ({"helicopter": {"tip_noise_db": [-6.0, -16.0]}}, "helicopter.tip_noise_db"),
+                                        ({"drone_bpf_hz": [190.0, 150.0]}, "drone_bpf_hz"),
+                                        ({"drone_bpf_hz": [0.0, 150.0]}, "drone_bpf_hz")])
 def test_bad_config_names_the_field(bad, field):
     with pytest.raises(UserInputError, match=field.replace("[", r"\[").replace("]", r"\]")):
         A.synthetic_audio_clips(bad, 0, 1)
@@ -211,3 +213,47 @@ def test_source_spans_reach_only_their_own_class():
     assert same == [True, False, True]                                          # DRONE, HELICOPTER, BACKGROUND
     same = [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(fitted, low_edge)]
     assert same == [False, True, True]
+
+
+def test_drone_bpf_span_retunes_the_drone_clip_only():
+    """``drone_bpf_hz`` puts the drone clip's blade-passing line where it is drawn and leaves the other
+    classes byte-identical; None keeps the simulator's size law."""
+    base = {"duration_s": 2.0, "drone_range_m": [[5.0, 6.0]], "ambience": {"wind_db": [5.0, 5.0]},
+            "drone_rpm_wander": None,
+            "rotor_noise": {"broadband_offset_db": [-15.0, -15.0], "harmonic_top_hz": [600.0, 600.0]}}
+    peaks = {}
+    clips = {}
+    for bpf in (None, 150.0, 230.0):
+        cfg = {**base, "drone_bpf_hz": None if bpf is None else [bpf, bpf]}
+        clips[bpf] = A.synthetic_audio_clips(cfg, 5, 1)
+        x = clips[bpf][0].samples.astype(np.float64)
+        spec = np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2
+        f = np.fft.rfftfreq(x.size, 1.0 / SR)
+        band = (f > 120) & (f < 260)
+        peaks[bpf] = f[band][np.argmax(spec[band])]
+    assert peaks[150.0] == pytest.approx(150.0, rel=0.04)
+    assert peaks[230.0] == pytest.approx(230.0, rel=0.04)
+    assert abs(peaks[None] - 150.0) > 10 and abs(peaks[None] - 230.0) > 10     # the size law puts it elsewhere
+    for other in (150.0, 230.0):
+        same = [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(clips[None], clips[other])]
+        assert same == [False, True, True]                                       # DRONE, HELICOPTER, BACKGROUND
+
+
+def test_drone_rpm_wander_moves_all_rotors_together_and_nothing_when_off():
+    from simulator.physics.timeline import build_timeline
+
+    cfg = A.synthetic_audio_config({"duration_s": 20.0, "drone_bpf_hz": [170.0, 170.0],
+                                    "drone_rpm_wander": [0.05, 0.05], "drone_rpm_wander_time_s": [0.5, 0.5]})
+    rng = np.random.default_rng(0)
+    scenario, _ = A._drone_scenario(cfg, rng, "d")
+    timeline = build_timeline(scenario, 1)
+    tuned = A._retuned(cfg, timeline, np.random.default_rng(1)).targets[0]
+    bpf = tuned.rotor_rpm.mean(axis=1) * tuned.n_blades / 60.0
+    assert np.median(bpf) == pytest.approx(170.0, rel=0.03)
+    assert 0.03 < np.std(bpf / np.median(bpf)) < 0.07                     # the drawn 5 % wander (plus attitude)
+    off = A.synthetic_audio_config({"duration_s": 20.0, "drone_bpf_hz": None, "drone_rpm_wander": None})
+    assert A._retuned(off, timeline, np.random.default_rng(1)) is timeline
+    still = A._retuned(A.synthetic_audio_config({"duration_s": 20.0, "drone_bpf_hz": [170.0, 170.0],
+                                                "drone_rpm_wander": None}), timeline,
+                       np.random.default_rng(1)).targets[0]
+    assert np.std(still.rotor_rpm.mean(axis=1)) / np.mean(still.rotor_rpm) < 0.01    # no wander without the field
