@@ -634,7 +634,7 @@ HELICOPTER_RANGES = {"main_blades": (2, 3, 3, 4, 4), "tail_ratio": (4.5, 6.5), "
                      "broadband_low_hz": (200.0, 400.0), "broadband_tilt_db": (-8.0, -6.0),
                      "tip_noise_db": (-22.0, -10.0), "tail_db": (-20.0, -10.0),
                      "turbine_tones": (1, 3), "turbine_hz": (6000.0, 12000.0), "turbine_db": (-30.0, -16.0),
-                     "turbine_noise_db": (-26.0, -14.0)}
+                     "turbine_noise_db": (-26.0, -14.0), "tail_peak_harmonic": (1.0, 1.0)}
 
 
 def _periodic_pulses(phase: np.ndarray, width: float, jitter: np.ndarray | None = None) -> np.ndarray:
@@ -686,16 +686,20 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
     broad = _source_noise(rng, retarded, sample_rate_hz, u("broadband_low_hz"), 16000.0, u("broadband_tilt_db")) * swish
     tip = _source_noise(rng, retarded, sample_rate_hz, 2000.0, 16000.0, -1.0) * swish
     k = np.arange(1, 16)
-    tail = np.sum(k[:, None] ** -1.0 * np.cos(2 * np.pi * k[:, None] * tail_phase[None, :]
-                                              + rng.uniform(0, 2 * np.pi, size=(k.size, 1))), axis=0)
+    tail_phases = rng.uniform(0, 2 * np.pi, size=(k.size, 1))
     turbine = np.zeros(tau.size)
     for _ in range(int(rng.integers(int(r["turbine_tones"][0]), int(r["turbine_tones"][1]) + 1))):
         f_t = u("turbine_hz") * (1 + 0.005 * _smooth_random(rng, tau.size, sample_rate_hz, 0.3))
         turbine += np.cos(2 * np.pi * np.cumsum(f_t) / sample_rate_hz + rng.uniform(0, 2 * np.pi))
     turbine_noise = _source_noise(rng, retarded, sample_rate_hz, 1000.0, 16000.0, -2.0)
-    parts = [(broad, 0.0), (tip, u("tip_noise_db")), (thump - thump.mean(), u("thump_db")),
-             (slap - slap.mean(), u("slap_db")), (tail, u("tail_db")), (turbine, u("turbine_db")),
-             (turbine_noise, u("turbine_noise_db"))]
+    levels = [u(name) for name in ("tip_noise_db", "thump_db", "slap_db", "tail_db", "turbine_db", "turbine_noise_db")]
+    # tail-rotor lines ~ k^-1 above its strongest harmonic, rising as (k / peak)^2 below it (peak 1: k^-1 from
+    # the first line); drawn last, so a span of (1, 1) leaves every other draw and the lines as before
+    peak = u("tail_peak_harmonic")
+    weights = k ** -1.0 * np.minimum(1.0, k / peak) ** 2
+    tail = np.sum(weights[:, None] * np.cos(2 * np.pi * k[:, None] * tail_phase[None, :] + tail_phases), axis=0)
+    parts = [(broad, 0.0), (tip, levels[0]), (thump - thump.mean(), levels[1]), (slap - slap.mean(), levels[2]),
+             (tail, levels[3]), (turbine, levels[4]), (turbine_noise, levels[5])]
     total = np.zeros(tau.size)
     for x, db in parts:
         total += x / max(float(np.sqrt(np.mean(x ** 2))), 1e-30) * 10 ** (db / 20)
@@ -950,6 +954,101 @@ def aircraft_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_
     duration = n / sample_rate_hz
     centre, width = rng.uniform(-0.3, 1.3) * duration, rng.uniform(4.0, 15.0)
     return _scale_to(base * (0.3 + np.exp(-0.5 * ((t - centre) / width) ** 2)), level_db)
+
+
+# Tonal machinery (issue 24, sixth pass): the Ambience beds above are all broadband, but outdoor
+# backgrounds often hold steady tones: mains-powered machinery hums at the mains frequency and its
+# harmonics (50 Hz in Europe; transformers radiate mostly at twice it, 100 Hz, from magnetostriction),
+# fans and pumps at their blade-passing frequency, idling or cruising engines at their firing frequency
+# (4-stroke: rpm / 60 x cylinders / 2, e.g. 4 cylinders at 2000-3000 rpm: 67-100 Hz) and harmonics.
+# Not part of Ambience / AmbienceDistribution (whose dumps are hashed into TRIDENT manifests); the
+# sim2real audio clips draw it through MachineryDistribution (docs/SIM2REAL_AUDIO.md, sixth pass).
+MACHINERY_SOURCE_INDEX = AMBIENT_SOURCE_INDEX + 7   # rng index of the machinery bed (after the other beds)
+MAX_MACHINERY_HARMONICS = 8
+
+
+class Machinery(BaseModel):
+    """One clip's tonal machinery bed: harmonics k x ``fundamental_hz`` (k = 1..len(harmonic_db)) at
+    ``harmonic_db`` re the strongest, the sum at ``level_db`` dB SPL; the speed wanders slowly
+    (relative std ``wander``, ~5 s correlation)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    level_db: float = Field(ge=0.0, le=110.0)
+    fundamental_hz: float = Field(gt=0.0, le=2000.0)
+    harmonic_db: tuple[float, ...] = Field(min_length=1, max_length=MAX_MACHINERY_HARMONICS)
+    wander: float = Field(default=0.0, ge=0.0, le=0.1)
+
+
+class MachineryDistribution(BaseModel):
+    """Where a clip's :class:`Machinery` bed is drawn from: on with ``probability``; then with
+    ``mains_probability`` a hum at exactly ``mains_hz`` with ``mains_harmonics`` harmonics and no wander,
+    else a machine at a fundamental drawn log-uniformly from ``fundamental_hz`` with ``harmonics``
+    harmonics and a drawn ``wander``. Per-harmonic levels: -``harmonic_slope_db`` x log2(k) plus a
+    Gaussian of std ``harmonic_spread_db`` (then re the strongest). Spans are (low, high)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    probability: float = Field(default=0.5, ge=0.0, le=1.0)
+    level_db: _Span = (20.0, 34.0)
+    mains_probability: float = Field(default=0.3, ge=0.0, le=1.0)
+    mains_hz: float = Field(default=50.0, gt=0.0)
+    mains_harmonics: tuple[int, int] = (4, 8)
+    fundamental_hz: _Span = (60.0, 260.0)
+    harmonics: tuple[int, int] = (1, 4)
+    harmonic_slope_db: float = Field(default=3.0, ge=0.0)
+    harmonic_spread_db: float = Field(default=5.0, ge=0.0)
+    wander: _Span = (0.0, 0.01)
+
+    @model_validator(mode="after")
+    def _spans(self) -> MachineryDistribution:
+        for name in ("level_db", "mains_harmonics", "fundamental_hz", "harmonics", "wander"):
+            lo, hi = getattr(self, name)
+            if lo > hi:
+                raise ValueError(f"{name}: low {lo} exceeds high {hi}")
+        for name in ("mains_harmonics", "harmonics"):
+            lo, hi = getattr(self, name)
+            if lo < 1 or hi > MAX_MACHINERY_HARMONICS:
+                raise ValueError(f"{name}: need 1 <= low <= high <= {MAX_MACHINERY_HARMONICS}, got {(lo, hi)}")
+        if self.fundamental_hz[0] <= 0:
+            raise ValueError(f"fundamental_hz: must be > 0, got {self.fundamental_hz[0]}")
+        return self
+
+
+def draw_machinery(rng: np.random.Generator, dist: MachineryDistribution) -> Machinery | None:
+    """One clip's machinery bed from ``dist`` (None: off). Nothing is drawn when ``dist.probability`` is 0;
+    otherwise always the same number of draws (on/off, kind, level, fundamental, count, wander and
+    MAX_MACHINERY_HARMONICS harmonic levels), so the outcome never shifts later draws."""
+    if dist.probability <= 0:
+        return None
+    on, mains = rng.random() < dist.probability, rng.random() < dist.mains_probability
+    level = float(rng.uniform(*dist.level_db))
+    f0 = float(np.exp(rng.uniform(np.log(dist.fundamental_hz[0]), np.log(dist.fundamental_hz[1]))))
+    count = int(rng.integers(*(dist.mains_harmonics if mains else dist.harmonics), endpoint=True))
+    wander = float(rng.uniform(*dist.wander))
+    k = np.arange(1, MAX_MACHINERY_HARMONICS + 1)
+    rel = -dist.harmonic_slope_db * np.log2(k) + rng.normal(0.0, dist.harmonic_spread_db, size=k.size)
+    if not on:
+        return None
+    rel = rel[:count] - rel[:count].max()
+    return Machinery(level_db=round(level, 1), fundamental_hz=dist.mains_hz if mains else round(f0, 2),
+                     harmonic_db=tuple(round(float(x), 1) for x in rel), wander=0.0 if mains else round(wander, 4))
+
+
+def machinery_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, machinery: Machinery) -> np.ndarray:
+    """The tonal bed of ``machinery`` at the microphone (Pa): harmonics with random phases on one slowly
+    wandering speed (low-passed at 0.2 Hz), a slow level drift (1 dB std, 0.3 Hz); harmonics above the
+    Nyquist frequency are dropped."""
+    check_sample_rate(sample_rate_hz)
+    speed = 1.0 + machinery.wander * _smooth_random(rng, n, sample_rate_hz, 0.2)
+    cycles = np.cumsum(machinery.fundamental_hz * speed) / sample_rate_hz
+    phases = rng.uniform(0.0, 2 * np.pi, size=len(machinery.harmonic_db))
+    x = np.zeros(n)
+    for k, (db, phi) in enumerate(zip(machinery.harmonic_db, phases), start=1):
+        if k * machinery.fundamental_hz * (1.0 + 4.0 * machinery.wander) < 0.5 * sample_rate_hz:
+            x += 10 ** (db / 20) * np.cos(2 * np.pi * k * cycles + phi)
+    drift = 10 ** (1.0 * _smooth_random(rng, n, sample_rate_hz, 0.3) / 20)
+    return _scale_to(x * drift, machinery.level_db)
 
 
 def synthesize_ambience(ambience: Ambience, n_samples: int, sample_rate_hz: float, seed: int,

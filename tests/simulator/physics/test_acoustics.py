@@ -449,3 +449,73 @@ def test_retuned_rotors_move_the_blade_passing_line_and_keep_the_sound_power():
     assert out["tuned"][0] == pytest.approx(0.8 * bpf, rel=0.03)
     assert abs(out["tuned"][1] - out["law"][1]) < 1.0
     assert out["law"][1] - out["stale"][1] > 1.5
+
+
+def test_machinery_bed_has_its_harmonics_at_their_levels_and_its_level():
+    m = ac.Machinery(level_db=40.0, fundamental_hz=120.0, harmonic_db=(0.0, -6.0, -12.0))
+    x = ac.machinery_bed(rng_for(2, "acoustics", ac.MACHINERY_SOURCE_INDEX), 4 * FS, FS, m)
+    assert ac.pa_to_db_spl(np.sqrt(np.mean(x ** 2))) == pytest.approx(40.0, abs=1e-6)
+    spec = np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2
+    f = np.fft.rfftfreq(x.size, 1.0 / FS)
+    line = [10 * np.log10(spec[(f > k * 120.0 - 3) & (f < k * 120.0 + 3)].max()) for k in (1, 2, 3, 4)]
+    assert line[1] - line[0] == pytest.approx(-6.0, abs=1.5) and line[2] - line[0] == pytest.approx(-12.0, abs=1.5)
+    assert line[3] < line[0] - 40                                      # no 4th harmonic was asked for
+    between = 10 * np.log10(np.median(spec[(f > 150) & (f < 210)]))
+    assert line[0] - between > 40                                      # lines, not noise
+    # a wandering machine spreads its line: less of the first harmonic's power in its +-3 Hz bin
+    wandering = ac.machinery_bed(rng_for(2, "acoustics", ac.MACHINERY_SOURCE_INDEX), 4 * FS, FS,
+                                 m.model_copy(update={"wander": 0.05}))
+    ws = np.abs(np.fft.rfft(wandering * np.hanning(x.size))) ** 2
+    peak = lambda s: s[(f > 117) & (f < 123)].sum() / s[(f > 60) & (f < 180)].sum()  # noqa: E731
+    assert peak(spec) > 0.95 and peak(ws) < 0.5
+
+
+def test_machinery_draws_mains_hum_or_a_machine_and_a_fixed_number_of_draws():
+    never = ac.MachineryDistribution(probability=0.0)
+    rng = np.random.default_rng(3)
+    assert ac.draw_machinery(rng, never) is None
+    assert rng.random() == np.random.default_rng(3).random()            # probability 0 takes no draws
+    mains = ac.MachineryDistribution(probability=1.0, mains_probability=1.0, mains_harmonics=(3, 5))
+    for seed in range(5):
+        m = ac.draw_machinery(np.random.default_rng(seed), mains)
+        assert m.fundamental_hz == 50.0 and m.wander == 0.0 and 3 <= len(m.harmonic_db) <= 5
+        assert max(m.harmonic_db) == 0.0
+    machine = ac.MachineryDistribution(probability=1.0, mains_probability=0.0, fundamental_hz=(80.0, 90.0),
+                                       harmonics=(2, 2), wander=(0.01, 0.01))
+    m = ac.draw_machinery(np.random.default_rng(4), machine)
+    assert 80.0 <= m.fundamental_hz <= 90.0 and len(m.harmonic_db) == 2 and m.wander == 0.01
+    # on or off, the same number of draws: what is drawn after the bed does not depend on the outcome
+    off = machine.model_copy(update={"probability": 1e-12})
+    a, b = np.random.default_rng(6), np.random.default_rng(6)
+    assert ac.draw_machinery(a, off) is None and ac.draw_machinery(b, machine) is not None
+    assert a.random() == b.random()
+    with pytest.raises(ValueError, match="harmonics"):
+        ac.MachineryDistribution(harmonics=(0, 3))
+    with pytest.raises(ValueError, match="level_db: low 30.0 exceeds high 20.0"):
+        ac.MachineryDistribution(level_db=(30.0, 20.0))
+
+
+def test_helicopter_tail_lines_peak_at_the_drawn_harmonic():
+    """``tail_peak_harmonic`` moves the strongest tail-rotor line from the first harmonic (k^-1, the module
+    default (1, 1), byte-identical) to the drawn one; the lines below it rise as (k / peak)^2."""
+    n = 2 * FS
+    ret = ac.Retarded(tau_s=np.arange(n) / FS, dtau_dt=np.ones(n), range_m=np.ones(n))
+    quiet = {k: (-80.0, -80.0) for k in ("tip_noise_db", "thump_db", "slap_db", "turbine_db", "turbine_noise_db")}
+    spans = {**quiet, "tail_db": (20.0, 20.0), "tail_ratio": (5.0, 5.0)}
+
+    def heli(extra):
+        return ac.helicopter_signature(ret, FS, rng_for(4, "acoustics", 0), main_rpm=390.0, main_blades=3,
+                                       ranges={**spans, **extra})
+
+    default, first, third = heli({}), heli({"tail_peak_harmonic": (1.0, 1.0)}), heli({"tail_peak_harmonic": (3.0, 3.0)})
+    assert default.tobytes() == first.tobytes()
+    bpf, _ = _peak_hz(first, 40.0, 200.0)                       # k^-1: the fundamental is the strongest line
+    f = np.fft.rfftfreq(n, 1.0 / FS)
+
+    def line_db(x, k):
+        spec = np.abs(np.fft.rfft(x * np.hanning(n))) ** 2
+        return 10 * np.log10(spec[np.abs(f - k * bpf) < 2.0].max())
+
+    assert line_db(first, 3) - line_db(first, 1) == pytest.approx(-20 * np.log10(3), abs=1.5)
+    assert line_db(third, 3) - line_db(third, 1) == pytest.approx(20 * np.log10(3), abs=1.5)
+    assert line_db(third, 2) - line_db(third, 1) == pytest.approx(20 * np.log10(2), abs=1.5)

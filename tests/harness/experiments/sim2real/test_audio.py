@@ -257,3 +257,20 @@ def test_drone_rpm_wander_moves_all_rotors_together_and_nothing_when_off():
                                                 "drone_rpm_wander": None}), timeline,
                        np.random.default_rng(1)).targets[0]
     assert np.std(still.rotor_rpm.mean(axis=1)) / np.mean(still.rotor_rpm) < 0.01    # no wander without the field
+
+
+def test_machinery_bed_reaches_every_class_and_nothing_when_off():
+    """``machinery`` adds the tonal bed to the clips of every class (one distribution: no class cue); None
+    or probability 0 leaves every clip byte-identical to the clips without it."""
+    cfg = {"duration_s": 2.0, "drone_range_m": [[10.0, 20.0]]}
+    off = A.synthetic_audio_clips({**cfg, "machinery": None}, 3, 1)
+    never = A.synthetic_audio_clips({**cfg, "machinery": {"probability": 0.0}}, 3, 1)
+    hum = A.synthetic_audio_clips({**cfg, "machinery": {"probability": 1.0, "mains_probability": 1.0,
+                                                        "mains_harmonics": [1, 1], "level_db": [70.0, 70.0]}}, 3, 1)
+    assert [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(off, never)] == [True, True, True]
+    assert [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(off, hum)] == [False, False, False]
+    x = hum[2].samples.astype(np.float64)                                  # the background clip
+    spec = np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2
+    f = np.fft.rfftfreq(x.size, 1.0 / SR)
+    band = (f > 30) & (f < 300)
+    assert f[band][np.argmax(spec[band])] == pytest.approx(50.0, abs=1.0)
