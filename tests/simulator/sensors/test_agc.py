@@ -118,3 +118,39 @@ def test_gamma_darkens_the_sky_and_keeps_black_and_white():
     assert np.median(ace[sky]) < np.median(plain[sky]) - 10
     assert ace[10, 10] == plain[10, 10] == 255
     assert ace.min() == plain.min() == 0
+
+
+def test_protocol_gain_lifts_a_clear_sky_over_warm_ground():
+    """The sim2real protocol's IR gain (examples/sim2real/realism_*.yaml, one camera for all four classes)
+    puts a clear sky over warm ground well above the former fit (linear 0.3, base gain 0.05, gamma 1.5),
+    which printed clear skies 30-40 grey levels darker than the real camera (docs/SIM2REAL.md, "IR sky
+    level under the gain stage"); a cloud layer lifts the frame under the former fit (the mechanism)."""
+    from pathlib import Path
+
+    import cv2
+    import yaml
+
+    root = Path(__file__).resolve().parents[3] / "examples" / "sim2real"
+    thermal = [yaml.safe_load((root / f"realism_{c}.yaml").read_text())["camera_rig"]["thermal"]
+               for c in ("drone", "bird", "airplane", "helicopter")]
+    assert all(t == thermal[0] for t in thermal)                                 # one camera, every class
+    t = thermal[0]
+    rng = np.random.default_rng(2)
+    y = np.mgrid[0:256, 0:320][0].astype(float)
+    clear = 26000 + 300 * (y / 160) + 3 * rng.standard_normal(y.shape)          # 3 K sky gradient, 0.03 K noise
+    clear[160:] = (28500 + 300 * cv2.GaussianBlur(rng.standard_normal(y.shape), (0, 0), 3))[160:]   # ground +25 K
+    clear[80:83, 150:156] = 29500                                                # a hot drone
+    cloud = cv2.GaussianBlur(rng.standard_normal(y.shape), (0, 0), 12)
+    cloudy = clear.copy()
+    cloudy[:160] += (np.clip(cloud / cloud.std(), 0, None) * 300)[:160]          # warm cloud patches, up to ~+10 K
+
+    def shown(frame, linear, base_gain, gamma):
+        agc = PlateauAgc(0.01, 0.05, t["agc_plateau_fraction"], linear, t["agc_tail_fraction"], t["agc_min_span_k"],
+                         0.0, t["agc_base_sigma_px"], base_gain, gamma)
+        return agc(np.clip(frame, 0, 65535).astype(np.uint16)).astype(float)
+
+    former = shown(clear, 0.3, 0.05, 1.5)
+    now = shown(clear, t["agc_linear_fraction"], t["agc_base_gain"], t["agc_gamma"])
+    assert np.median(now[:150]) > np.median(former[:150]) + 15                   # the clear sky is lifted
+    assert now[81, 152] == 255                                                   # the target stays white
+    assert np.median(shown(cloudy, 0.3, 0.05, 1.5)) > np.median(former) + 5      # clouds lifted the old fit's frame
