@@ -67,12 +67,15 @@ def _visual_job(cond: str, head: str, seed: int) -> dict[str, Any]:
     """Train one crop model and predict every cell of both evaluation sets."""
     import torch
 
+    from evids.models.backbones import seeded_init
+
     torch.set_num_threads(1)
     from simulator.jobs import job_context
 
     f = job_context()
     x, y = f["train"][cond]
-    net = M.crop_net(x.shape[1], f["n_classes"], head)
+    with seeded_init(seed):     # not the global RNG state the worker's previous job left
+        net = M.crop_net(x.shape[1], f["n_classes"], head)
     M.train(net, x, y, M.class_balanced_weights(y, f["n_classes"]), head=head, n_classes=f["n_classes"], seed=seed,
             steps=f["steps"], batch_size=BATCH, learning_rate=LEARNING_RATE, flips=True)
     return _predict_cells(net, head, f["tests"], _to_input)
@@ -92,6 +95,8 @@ def _predict_cells(net, head: str, tests: dict, to_input: Callable) -> dict[str,
 def _audio_job(cond: str, head: str, seed: int) -> dict[str, Any]:
     import torch
 
+    from evids.models.backbones import seeded_init
+
     torch.set_num_threads(1)
     from simulator.jobs import job_context
 
@@ -99,7 +104,8 @@ def _audio_job(cond: str, head: str, seed: int) -> dict[str, Any]:
     x, y, w = f["train"][cond]
     mean = x.mean(axis=(0, 2), keepdims=True)
     std = x.std(axis=(0, 2), keepdims=True) + 1e-3
-    net = M.audio_net(head)
+    with seeded_init(seed):
+        net = M.audio_net(head)
     M.train(net, ((x - mean) / std)[:, None], y, w, head=head, n_classes=2, seed=seed, steps=f["steps"],
             batch_size=64, learning_rate=LEARNING_RATE, flips=False)
     return _predict_cells(net, head, f["tests"], lambda v: ((v - mean) / std)[:, None].astype(np.float32))
@@ -338,9 +344,11 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
             for j, seq in enumerate(done):
                 for sensor in sensors:
                     syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
-        for _, (got, _) in forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
-                                      else None):
-            samples += got
+        # in call order, not forked_map's completion order (timing): the order sets the models' batches
+        syn_results = dict(forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
+                                      else None))
+        for i in range(len(syn_calls)):
+            samples += syn_results.pop(i)[0]
         summary["timings_s"]["samples"] = time.time() - t
     for sensor in sensors:
         t = time.time()

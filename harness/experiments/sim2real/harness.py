@@ -64,7 +64,8 @@ def _cached_real_samples(out: Path, bench, calls: list, workers: int, progress: 
             pass  # unreadable or from another version: recompute
     from harness.experiments.pipeline import forked_map
 
-    results = dict(forked_map(_real_job, calls, workers, "real clips" if progress else None, context=bench))
+    results = dict(sorted(forked_map(_real_job, calls, workers, "real clips" if progress else None, context=bench),
+                          key=lambda r: r[0]))      # call order, not completion order: the same cache bytes
     write_atomic(path, pickle.dumps({"key": key, "results": results}, protocol=pickle.HIGHEST_PROTOCOL))
     return results
 
@@ -266,8 +267,13 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                 syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
     summary["timings_s"]["synthetic_render"] = time.time() - t
     t = time.time()
-    for _, (got, summ) in forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
-                                     else None):
+    # forked_map yields in completion order (timing: e.g. how long the other sensor's jobs take);
+    # the samples' order sets the classifiers' batches and the detector's training list, so they
+    # are taken in call order (class, sequence, sensor)
+    syn_results = dict(forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
+                                  else None))
+    for i in range(len(syn_calls)):
+        got, summ = syn_results.pop(i)
         samples += got
         clip_summaries.append(summ)
     summary["timings_s"]["synthetic_samples"] = time.time() - t

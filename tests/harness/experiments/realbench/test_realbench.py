@@ -230,3 +230,44 @@ def test_evidential_crop_model_learns_and_reports_vacuity():
             assert s.vacuity is not None and np.all((s.vacuity > 0) & (s.vacuity <= 1))
         else:
             assert s.vacuity is None
+
+
+def test_results_do_not_depend_on_the_order_forked_jobs_finish_in(quick_run, tmp_path, monkeypatch):
+    """``forked_map`` yields in completion order (timing), and a worker runs its jobs one after the
+    other: the synthetic samples must still reach the models in call order, and a model's initial
+    weights must not come from the global RNG state the previous job left. The quick run redone
+    in-process (other jobs before each, another global RNG state) with every forked map delivering
+    its results in reverse order gives the same realbench.json (timings aside)."""
+    import torch
+
+    from harness.experiments import pipeline
+    from harness.experiments.realbench.harness import run_realbench
+
+    out, proc = quick_run
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    original = pipeline.forked_map
+
+    def reverse_order_map(fn, calls, workers, label=None, context=None):
+        return reversed(list(original(fn, calls, 1, None, context=context)))
+
+    monkeypatch.setattr(pipeline, "forked_map", reverse_order_map)
+    threads = torch.get_num_threads()
+    try:
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(12345)            # not the state a fresh process starts from
+            run_realbench(out.parent / "real", out.parent / "s2r", tmp_path / "rerun", quick=True, audio=False,
+                          n_triplets=30, progress=False, log=lambda _: None)
+    finally:
+        torch.set_num_threads(threads)
+    first, second = (json.loads((d / "realbench.json").read_text()) for d in (out, tmp_path / "rerun"))
+    for summary in (first, second):
+        summary.pop("timings_s")
+
+    def differ(a, b, at=""):
+        if isinstance(a, dict) and isinstance(b, dict) and a.keys() == b.keys():
+            return [d for k in a for d in differ(a[k], b[k], f"{at}/{k}")]
+        if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+            return [d for i, (u, v) in enumerate(zip(a, b)) for d in differ(u, v, f"{at}[{i}]")]
+        return [] if a == b else [f"{at}: {a!r} != {b!r}"]
+
+    assert differ(first, second) == []

@@ -143,3 +143,46 @@ def test_every_condition_gets_the_same_number_of_optimiser_steps(n_crops, monkey
                              rng.integers(0, 2, n_crops), np.array([f"c{i % 3}" for i in range(n_crops)]))
     classify.train_cnn(crops, 2, seed=0, steps=7, batch_size=64, learning_rate=1e-3)
     assert len(calls) == 7
+
+
+def test_outputs_do_not_depend_on_the_order_forked_jobs_finish_in(quick_run, tmp_path, monkeypatch):
+    """``forked_map`` yields in completion order, which depends on timing (how long the other
+    sensor's jobs take, the machine's load): the run must put the results back in call order. The
+    quick run's folder rerun in-process (real and synthetic caches reused) with every forked map
+    delivering its results in reverse order gives the same numbers, detector outputs and sheets.
+    (Appending the synthetic samples in completion order made an IR-only change move the visible
+    results, and two runs on identical inputs differ.)"""
+    import shutil
+
+    import torch
+
+    from harness.experiments import pipeline
+    from harness.experiments.sim2real import harness
+
+    real, out, proc = quick_run
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    rerun = tmp_path / "rerun"
+    shutil.copytree(out, rerun)
+    for stale in ("sim2real.json", "sim2real.html", "sheets", "detector"):
+        path = rerun / stale
+        shutil.rmtree(path) if path.is_dir() else path.unlink()
+    original = pipeline.forked_map
+
+    def reverse_order_map(fn, calls, workers, label=None, context=None):
+        return reversed(list(original(fn, calls, 1, None, context=context)))
+
+    monkeypatch.setattr(pipeline, "forked_map", reverse_order_map)
+    monkeypatch.setattr(harness, "_audio_track", lambda *a, **k: {})      # no forked jobs, not under test
+    threads = torch.get_num_threads()
+    try:
+        harness.run_sim2real(real, rerun, quick=True, progress=False, log=lambda _: None)
+    finally:
+        torch.set_num_threads(threads)
+    first, second = (json.loads((d / "sim2real.json").read_text())["sensors"] for d in (out, rerun))
+    for sensor in ("ir", "visible"):
+        assert second[sensor] == first[sensor], sensor
+    files = sorted(p.relative_to(out) for d in ("sheets", "detector") for p in (out / d).rglob("*")
+                   if p.is_file() and not p.name.startswith("audio"))
+    assert files
+    differ = [str(f) for f in files if (out / f).read_bytes() != (rerun / f).read_bytes()]
+    assert not differ, differ
