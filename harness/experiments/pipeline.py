@@ -165,6 +165,14 @@ def forked_map(fn: Callable, calls: list[tuple], workers: int, label: str | None
     return iter_jobs(fn, calls, workers=workers, start=start, progress=label, context=context)
 
 
+def forked_results(fn: Callable, calls: list[tuple], workers: int, label: str | None = None,
+                   context: Any = None) -> list:
+    """``forked_map``'s results as a list in call order (completion order depends on timing: where
+    the results' order matters, e.g. training samples, take them from here)."""
+    done = dict(forked_map(fn, calls, workers, label, context))
+    return [done.pop(i) for i in range(len(calls))]
+
+
 def train_unimodal(cfg: ExperimentConfig, prep: Prepared, seeds: list[int], progress: bool = True
                    ) -> list[tuple[dict[tuple[str, str], UnimodalModel], dict]]:
     """Stage 1 for every training seed: six unimodal models per seed, trained as independent jobs

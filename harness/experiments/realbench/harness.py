@@ -294,7 +294,7 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
                   log: Callable[[str], None] = print) -> dict[str, Any]:
     """The whole track into ``out`` (see the module docstring); returns the summary."""
     from harness.experiments.config import FusionConfig
-    from harness.experiments.pipeline import forked_map
+    from harness.experiments.pipeline import forked_results
     from harness.experiments.sim2real import audio as s2r_audio
     from harness.experiments.sim2real.config import Sim2RealConfig
     from harness.experiments.sim2real.harness import VISUAL_SENSORS, _cached_real_samples, _synthetic_job
@@ -345,10 +345,9 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
                 for sensor in sensors:
                     syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
         # in call order, not forked_map's completion order (timing): the order sets the models' batches
-        syn_results = dict(forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
-                                      else None))
-        for i in range(len(syn_calls)):
-            samples += syn_results.pop(i)[0]
+        for got, _ in forked_results(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
+                                     else None):
+            samples += got
         summary["timings_s"]["samples"] = time.time() - t
     for sensor in sensors:
         t = time.time()

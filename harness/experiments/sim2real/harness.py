@@ -62,10 +62,11 @@ def _cached_real_samples(out: Path, bench, calls: list, workers: int, progress: 
                 return cached["results"]
         except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError):
             pass  # unreadable or from another version: recompute
-    from harness.experiments.pipeline import forked_map
+    from harness.experiments.pipeline import forked_results
 
-    results = dict(sorted(forked_map(_real_job, calls, workers, "real clips" if progress else None, context=bench),
-                          key=lambda r: r[0]))      # call order, not completion order: the same cache bytes
+    # call order, not completion order: the same cache bytes
+    results = dict(enumerate(forked_results(_real_job, calls, workers, "real clips" if progress else None,
+                                            context=bench)))
     write_atomic(path, pickle.dumps({"key": key, "results": results}, protocol=pickle.HIGHEST_PROTOCOL))
     return results
 
@@ -199,7 +200,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     """Run the whole protocol into ``out`` (see the module docstring); returns the summary."""
     # every module the run needs is imported here, before the long work: a module loaded lazily at
     # the end could come from a different version of the files than the rest of the run
-    from harness.experiments.pipeline import forked_map
+    from harness.experiments.pipeline import forked_results
     from harness.experiments.sim2real import audio as _audio  # noqa: F401
     from harness.experiments.sim2real import detect as _detect  # noqa: F401
     from harness.report.sim2real import write_page
@@ -267,13 +268,10 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                 syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
     summary["timings_s"]["synthetic_render"] = time.time() - t
     t = time.time()
-    # forked_map yields in completion order (timing: e.g. how long the other sensor's jobs take);
-    # the samples' order sets the classifiers' batches and the detector's training list, so they
-    # are taken in call order (class, sequence, sensor)
-    syn_results = dict(forked_map(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
-                                  else None))
-    for i in range(len(syn_calls)):
-        got, summ = syn_results.pop(i)
+    # in call order (class, sequence, sensor), not completion order: the samples' order sets the
+    # classifiers' batches and the detector's training list
+    for got, summ in forked_results(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
+                                    else None):
         samples += got
         clip_summaries.append(summ)
     summary["timings_s"]["synthetic_samples"] = time.time() - t
