@@ -39,7 +39,7 @@ from harness.experiments.pipeline import (
     Models,
     Outputs,
     encode_modality,
-    forked_map,
+    forked_results,
     load_models,
     save_models,
     train_all,
@@ -215,10 +215,10 @@ def stage_train(cfg: ExperimentConfig, run_dir: Path, progress: bool = True) -> 
     trained = train_unimodal(cfg, prep, list(cfg.models.seeds), progress)
     # stage 2 (fusion heads, temperatures) of every training seed as forked jobs (identical results
     # for any worker count: each depends only on its own seed's models and the shared inputs)
-    done = dict(forked_map(_fusion_job, [(k,) for k in range(len(trained))], cfg.models.train_workers,
-                           "fitting fusion heads" if progress else None, context=(cfg, prep, val_noisy, trained)))
-    models = [done[k][0] for k in range(len(trained))]
-    records = [done[k][1] for k in range(len(trained))]
+    fitted = forked_results(_fusion_job, [(k,) for k in range(len(trained))], cfg.models.train_workers,
+                            "fitting fusion heads" if progress else None, context=(cfg, prep, val_noisy, trained))
+    models = [m for m, _ in fitted]
+    records = [r for _, r in fitted]
     record = {"runs": records}
     save_models(models, run_dir / "models.pt")
     split = {s: [prep.clips[i].clip_id for i in idx] for s, idx in prep.split.items()}
@@ -445,13 +445,13 @@ def _evaluate_group(group: tuple, extra: tuple) -> tuple[tuple, list]:
     return group, rows
 
 
-def map_groups(ctx: Context, groups: list, extra: tuple, label: str, job=None):
-    """(group, result) of ``job(group, extra)`` (default _evaluate_group) for every group, through
-    pipeline.forked_map on ``models.train_workers`` processes (each on models.torch_threads
+def map_groups(ctx: Context, groups: list, extra: tuple, label: str, job=None) -> list:
+    """The results of ``job(group, extra)`` (default _evaluate_group; each a (group, result) pair)
+    for every group, in the order of ``groups`` whatever order the workers finish in, through
+    pipeline.forked_results on ``models.train_workers`` processes (each on models.torch_threads
     threads, inheriting the context; results do not depend on the count)."""
-    for _, result in forked_map(job or _evaluate_group, [(g, extra) for g in groups], ctx.cfg.models.train_workers,
-                                label if ctx.progress else None, context=ctx):
-        yield result
+    return forked_results(job or _evaluate_group, [(g, extra) for g in groups], ctx.cfg.models.train_workers,
+                          label if ctx.progress else None, context=ctx)
 
 
 def warm_clean(ctx: Context) -> None:
