@@ -45,8 +45,11 @@ class CropSet:
 
 def crop_set(samples: Sequence[FrameSample], classes: Sequence[str], kind: str = "crop") -> CropSet:
     """Stack target crops (``kind="crop"``) or background patches into a training array."""
-    rows = [(s.crop if kind == "crop" else s.background, classes.index(s.cls), s.clip) for s in samples
-            if s.cls in classes and (s.crop.size if kind == "crop" else s.background is not None)]
+    rows: list[tuple[np.ndarray, int, str]] = []
+    for s in samples:
+        image = s.crop if kind == "crop" else s.background
+        if s.cls in classes and image is not None and image.size:
+            rows.append((image, classes.index(s.cls), s.clip))
     if not rows:
         return CropSet(np.zeros((0, 1, 1, 1), np.float32), np.zeros(0, np.int64), np.zeros(0, str))
     imgs = np.stack([r[0] for r in rows]).astype(np.float32) / 255.0 - 0.5

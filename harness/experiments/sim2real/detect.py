@@ -70,7 +70,9 @@ def detect(model, seqs: Sequence, sensor: str, max_peaks: int = 5, score_floor: 
 def coco_ground_truth(seqs: Sequence) -> tuple[dict[str, Any], dict[tuple[int, int], int]]:
     """COCO ground truth of the sequences' kept frames: one image per frame, one "target" box per
     labelled frame; returns (dataset dict, {(sequence index, frame position): image id})."""
-    images, annotations, ids = [], [], {}
+    images: list[dict[str, Any]] = []
+    annotations: list[dict[str, Any]] = []
+    ids: dict[tuple[int, int], int] = {}
     for si, seq in enumerate(seqs):
         h, w = np.asarray(seq.thermal_k).shape[1:3]
         for fi, box in enumerate(seq.gt_thermal):

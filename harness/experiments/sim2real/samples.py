@@ -260,7 +260,11 @@ def synthetic_boxes(sequence_dir: Path, sensor: str) -> list[Box | None]:
     out: list[Box | None] = []
     for frame in labels["frames"]:
         rec = next((r for r in frame[camera] if r["id"] == target_id), None)
-        out.append(tuple(float(v) for v in rec["box"]) if rec and rec["exist"] else None)  # type: ignore[misc]
+        if rec and rec["exist"]:
+            x0, y0, x1, y1 = (float(v) for v in rec["box"])
+            out.append((x0, y0, x1, y1))
+        else:
+            out.append(None)
     return out
 
 
