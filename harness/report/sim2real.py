@@ -45,6 +45,13 @@ def _sheet(run_dir: Path, name: str, caption: str) -> str:
             f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
 
+def _recall(classes: list[str], recall: list[float | None] | None) -> str:
+    """"drone 0.81, bird 0.40, ..." (runs written before per-class recall was recorded: "")."""
+    if not recall:
+        return ""
+    return ", ".join(f"{html.escape(c.lower())} {'-' if r is None else f'{r:.2f}'}" for c, r in zip(classes, recall))
+
+
 def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
     c = res["classifier"]
     n = res["n_clips"]
@@ -55,9 +62,10 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
              f"{1 / len(res['classes']):.2f}) evaluated on {c['n_test_crops']} crops of the {c['n_test_clips']} "
              "evaluation clips; mean over training seeds, 95 % clip-bootstrap interval.</p>"]
     rows = [[html.escape(v.get("label", k)), _ci(v), ", ".join(f"{x:.3f}" for x in v["per_seed"]),
-             str(c["train_sizes"].get(k, "")), str(c["train_clips"].get(k, ""))] for k, v in c["conditions"].items()]
-    parts.append(_table(["condition", "balanced accuracy [95 % CI]", "per seed", "training crops", "training clips"],
-                        rows))
+             _recall(res["classes"], v.get("recall")), str(c["train_sizes"].get(k, "")),
+             str(c["train_clips"].get(k, ""))] for k, v in c["conditions"].items()]
+    parts.append(_table(["condition", "balanced accuracy [95 % CI]", "per seed", "recall per class (mean over seeds)",
+                         "training crops", "training clips"], rows))
     rows = [[label, _ci(c.get(key), signed=key != "ratio_b_over_a")] for key, label in
             (("ratio_b_over_a", "ratio (b) / (a)"), ("gain_c_minus_a", "(c) - (a)"),
              ("gain_dplus_minus_d", "(d+) - (d)"))]

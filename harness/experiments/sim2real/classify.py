@@ -43,6 +43,17 @@ class CropSet:
     clip: np.ndarray       # (n,) str: the clip/sequence id
 
 
+def per_class(y: np.ndarray, preds: np.ndarray, n_classes: int) -> dict[str, list]:
+    """Per-class recall (mean over the seeds' predictions ``preds``, shape (n_seeds, n_test); None for a
+    class absent from ``y``) and the confusion counts summed over seeds (rows true, columns predicted)."""
+    confusion = np.zeros((n_classes, n_classes), np.int64)
+    for row in preds:
+        np.add.at(confusion, (y, row), 1)
+    totals = confusion.sum(axis=1)
+    recall = [float(confusion[k, k] / totals[k]) if totals[k] else None for k in range(n_classes)]
+    return {"recall": recall, "confusion": confusion.tolist()}
+
+
 def crop_set(samples: Sequence[FrameSample], classes: Sequence[str], kind: str = "crop") -> CropSet:
     """Stack target crops (``kind="crop"``) or background patches into a training array."""
     rows: list[tuple[np.ndarray, int, str]] = []
@@ -187,7 +198,8 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
                            "train_clips": {n: int(np.unique(s.clip).size) for n, s in sets.items()}}
     for k, name in enumerate(names):
         res = clustered_bootstrap(mean_balacc(k), test.y, data, clusters=test.clip, rng=rng_seed, n_resamples=bootstrap)
-        out["conditions"][name] = {"label": CONDITION_LABELS[name], **_interval(res), "per_seed": per_seed[name]}
+        out["conditions"][name] = {"label": CONDITION_LABELS[name], **_interval(res), "per_seed": per_seed[name],
+                                   **per_class(test.y, preds[name], n_classes)}
 
     def pair(a: str, b: str, kind: str) -> dict[str, float] | None:
         if a not in preds or b not in preds:

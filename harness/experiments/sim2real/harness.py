@@ -375,8 +375,10 @@ def format_table(summary: dict[str, Any]) -> str:
         lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({c['n_test_clips']} clips, "
                      f"{c['n_test_crops']} crops; chance {1 / len(res['classes']):.2f})")
         for name, r in c["conditions"].items():
+            recall = ", ".join(f"{k.lower()} {'-' if v is None else f'{v:.2f}'}"
+                               for k, v in zip(res["classes"], r.get("recall") or []))
             lines.append(f"  {classify.CONDITION_LABELS[name]:<40} {r['estimate']:.3f} [{r['ci_low']:.3f}, "
-                         f"{r['ci_high']:.3f}]")
+                         f"{r['ci_high']:.3f}]" + (f"  recall {recall}" if recall else ""))
         for key, label in (("ratio_b_over_a", "ratio (b)/(a)"), ("gain_c_minus_a", "(c) - (a)"),
                            ("gain_dplus_minus_d", "(d+) - (d)")):
             r = c.get(key)

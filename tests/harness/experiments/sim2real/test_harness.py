@@ -47,6 +47,10 @@ def test_quick_run_writes_summary_page_and_sheets(quick_run):
         conds = res["classifier"]["conditions"]
         assert list(conds) == list(classify.CONDITIONS)
         assert all(0.0 <= c["estimate"] <= 1.0 and c["ci_low"] <= c["estimate"] <= c["ci_high"] for c in conds.values())
+        a_real = conds["a_real"]     # per-class recall: its mean over the classes present is the balanced accuracy
+        assert len(a_real["recall"]) == len(res["classes"]) and len(a_real["confusion"]) == len(res["classes"])
+        present = [r for r in a_real["recall"] if r is not None]
+        assert np.mean(present) == pytest.approx(np.mean(a_real["per_seed"]))
         assert res["n_clips"]["real_evaluation"] == (7 if sensor == "ir" else 8) and res["n_clips"]["synthetic"] == 4
         # the calibration half trains, the evaluation half tests: no clip in both
         assert res["classifier"]["train_clips"]["a_real"] == res["n_clips"]["real_calibration"]
@@ -57,7 +61,7 @@ def test_quick_run_writes_summary_page_and_sheets(quick_run):
     assert "IR_BIRD_004" in (out / "skipped.txt").read_text() and len(summary["skipped_clips"]) == 1
     page = (out / "sim2real.html").read_text()
     assert "Sim-to-real" in page and "(b) synthetic only" in page and "data:image/png;base64" in page
-    assert "ratio (b)/(a)" in proc.stdout
+    assert "ratio (b)/(a)" in proc.stdout and "recall drone" in proc.stdout and "recall per class" in page
     audio = summary["sensors"]["audio"]
     assert set(audio["classifier"]) == {"cnn", "logreg"} and audio["n_clips"]["evaluation"] == 6
     assert (out / "sheets" / audio["figure"]).stat().st_size > 1000 and "helicopter windows called drone" in page
@@ -113,6 +117,15 @@ def test_balanced_accuracy_and_statistics_table_inside_flag():
     assert table["DRONE"]["contrast"]["real_evaluation"]["q25"] == 2.0
     rows[-1] = mk("synthetic", "synthetic", 50.0)
     assert statistics_table(rows, [], "ir", ["DRONE"])["DRONE"]["contrast"]["inside"] is False
+
+
+def test_per_class_recall_and_confusion_known_answer():
+    y = np.array([0, 0, 1, 1, 2])
+    preds = np.array([[0, 1, 1, 1, 0],      # seed 0: class 0 half right, class 1 right, class 2 wrong
+                      [0, 0, 0, 1, 0]])     # seed 1: class 0 right, class 1 half right, class 2 wrong
+    out = classify.per_class(y, preds, 4)
+    assert out["recall"] == [pytest.approx(0.75), pytest.approx(0.75), 0.0, None]
+    assert out["confusion"] == [[3, 1, 0, 0], [1, 3, 0, 0], [2, 0, 0, 0], [0, 0, 0, 0]]
 
 
 def test_few_shot_takes_a_fraction_of_each_class_at_least_one():
