@@ -350,9 +350,10 @@ def _config_model():
                         "microphone (the wind of the recording day, and near a drone its downwash and outwash: "
                         "acoustics.wind_bed, gusty red noise) at a level drawn re the clip's mix at the microphone; a "
                         "class not named (or 0): off, nothing drawn. The fit (seventh pass, docs/SIM2REAL_AUDIO.md): "
-                        "7 of the calibration half's 15 drone clips carry gusty 20-60 Hz noise within 16 dB of their "
-                        "total level, 3 of 15 backgrounds and 1 of 15 helicopters; the synthetic backgrounds and "
-                        "helicopters already carry the ambience's wind bed, so only the drones draw it")
+                        "7 of the calibration half's 15 drone clips carry gusty red noise with their 20-40 Hz "
+                        "band within 16.5 dB of the total, 3 of 15 backgrounds and 1 of 15 helicopters; the "
+                        "synthetic backgrounds and helicopters already carry the ambience's wind bed, so only the "
+                        "drones draw it")
         mic_wind_db: Span = Field(default=(-6.0, 4.0),
                                   description="its level (dB re the RMS level of the clip's mix at the microphone)")
         mic_wind_gust_depth: Span = Field(default=(0.5, 1.0), description="its gust depth (acoustics.wind_bed)")
@@ -361,8 +362,8 @@ def _config_model():
             description="its upper band edge (Hz); 200 Hz put wind energy into the log-mel bands of the real "
                         "backgrounds' 127 Hz lines and raised the LR's false alarms (seventh pass)")
         mic_wind_tilt_db: float = Field(default=-9.0, ge=-24.0, le=0.0, description=(
-            "its spectral tilt (dB/octave; the calibration half's windy drone clips fall 6-16 dB from the 20-40 Hz to "
-            "the 60-90 Hz band)"))
+            "its spectral tilt (dB/octave; 5 of the calibration half's 7 windy drone clips fall 6-16 dB from the "
+            "20-40 Hz to the 60-90 Hz band)"))
         recorder: bool = Field(default=True, description="pass the mix through the recording chain")
         microphone: RecorderConfig = Field(
             default_factory=lambda: RecorderConfig(agc_target_dbfs=(-28.0, -20.0), presence_hz=(4000.0, 10000.0)),
