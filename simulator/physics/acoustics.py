@@ -634,7 +634,8 @@ HELICOPTER_RANGES = {"main_blades": (2, 3, 3, 4, 4), "tail_ratio": (4.5, 6.5), "
                      "broadband_low_hz": (200.0, 400.0), "broadband_tilt_db": (-8.0, -6.0),
                      "tip_noise_db": (-22.0, -10.0), "tail_db": (-20.0, -10.0),
                      "turbine_tones": (1, 3), "turbine_hz": (6000.0, 12000.0), "turbine_db": (-30.0, -16.0),
-                     "turbine_noise_db": (-26.0, -14.0), "tail_peak_harmonic": (1.0, 1.0)}
+                     "turbine_noise_db": (-26.0, -14.0), "tail_peak_harmonic": (1.0, 1.0),
+                     "level_fluctuation_db": (0.0, 0.0), "level_fluctuation_hz": (0.3, 1.0)}
 
 
 def _periodic_pulses(phase: np.ndarray, width: float, jitter: np.ndarray | None = None) -> np.ndarray:
@@ -789,6 +790,13 @@ def synthesize_target(track, frame_times_s: np.ndarray, mic_position_m: np.ndarr
         src = helicopter_signature(ret, sample_rate_hz, rng, main_rpm=main_rpm,
                                    main_blades=getattr(track, "n_blades", None) if rpm_frames.size else None,
                                    ranges=helicopter_ranges)
+        # turbulent propagation over 50-300 m (and the pilot's collective) make the received level wander; the
+        # module's span (0, 0) draws nothing, so every helicopter output stays as it was without it
+        spans = merged_ranges(HELICOPTER_RANGES, helicopter_ranges, "helicopter")
+        if spans["level_fluctuation_db"][1] > 0:
+            std_db = float(rng.uniform(*spans["level_fluctuation_db"]))
+            corner_hz = float(rng.uniform(*spans["level_fluctuation_hz"]))
+            fluctuation = _level_fluctuation(rng, n_samples, sample_rate_hz, std_db, corner_hz)
     else:
         raise ValueError(f"kind: unknown target kind {track.kind!r}")
     ground = {}
@@ -886,9 +894,11 @@ def _scale_to(x: np.ndarray, level_db: float) -> np.ndarray:
     return x * db_spl_to_pa(level_db) / max(float(np.sqrt(np.mean(x ** 2))), 1e-30)
 
 
-def wind_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float, gust_depth: float) -> np.ndarray:
-    """Wind on the microphone: red-tilted low-frequency noise with slow gust envelope (~0.3 Hz)."""
-    base = _shaped_noise(rng, n, sample_rate_hz, 15.0, 500.0, -6.0)
+def wind_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float, gust_depth: float, *,
+             high_hz: float = 500.0, tilt_db_per_octave: float = -6.0) -> np.ndarray:
+    """Wind on the microphone: red-tilted low-frequency noise (15 Hz-``high_hz``, ``tilt_db_per_octave``)
+    with slow gust envelope (~0.3 Hz)."""
+    base = _shaped_noise(rng, n, sample_rate_hz, 15.0, high_hz, tilt_db_per_octave)
     gust = np.exp(gust_depth * 1.2 * _smooth_random(rng, n, sample_rate_hz, 0.3))
     return _scale_to(base * gust, level_db)
 

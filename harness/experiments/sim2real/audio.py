@@ -332,16 +332,38 @@ def _config_model():
         helicopter: dict[str, Span] = Field(
             default_factory=lambda: {"turbine_hz": (7500.0, 11500.0), "broadband_tilt_db": (-9.0, -7.0),
                                      "tip_noise_db": (-16.0, -6.0), "tail_db": (-14.0, -4.0),
-                                     "tail_peak_harmonic": (1.5, 3.5)},
+                                     "tail_peak_harmonic": (1.5, 3.5), "level_fluctuation_db": (1.0, 3.0)},
             description="helicopter source spans replacing those of acoustics.HELICOPTER_RANGES (the sim2real fit; "
                         "docs/SIM2REAL_AUDIO.md, fourth pass; sixth pass: tail-rotor lines 6 dB stronger, the "
-                        "strongest at the 2nd-3rd harmonic as in the calibration half's helicopters)")
+                        "strongest at the 2nd-3rd harmonic as in the calibration half's helicopters; seventh pass: "
+                        "the received level wanders by 1-3 dB (turbulent propagation; the calibration half's "
+                        "helicopters' 100 ms level std 1.8 dB [1.2, 2.5], the steady synthetic ones' 0.7))")
         ambience: AmbienceDistribution = Field(default_factory=AmbienceDistribution)
         machinery: MachineryDistribution | None = Field(
             default=None,
             description="a tonal machinery bed (mains hum, fans, engines: acoustics.machinery_bed) drawn for every "
                         "clip of every class (one distribution, no class cue); None: off. Off by default: probed in "
                         "the sixth pass (docs/SIM2REAL_AUDIO.md), it raised the log-mel LR's false alarms")
+        mic_wind_probability: dict[str, float] = Field(
+            default_factory=lambda: {"DRONE": 0.6},
+            description="per class (DRONE / HELICOPTER / BACKGROUND), the share of clips with flow noise on the "
+                        "microphone (the wind of the recording day, and near a drone its downwash and outwash: "
+                        "acoustics.wind_bed, gusty red noise) at a level drawn re the clip's mix at the microphone; a "
+                        "class not named (or 0): off, nothing drawn. The fit (seventh pass, docs/SIM2REAL_AUDIO.md): "
+                        "7 of the calibration half's 15 drone clips carry gusty red noise with their 20-40 Hz "
+                        "band within 16.5 dB of the total, 3 of 15 backgrounds and 1 of 15 helicopters; the "
+                        "synthetic backgrounds and helicopters already carry the ambience's wind bed, so only the "
+                        "drones draw it")
+        mic_wind_db: Span = Field(default=(-6.0, 4.0),
+                                  description="its level (dB re the RMS level of the clip's mix at the microphone)")
+        mic_wind_gust_depth: Span = Field(default=(0.5, 1.0), description="its gust depth (acoustics.wind_bed)")
+        mic_wind_high_hz: float = Field(
+            default=100.0, gt=15.0, le=2000.0,
+            description="its upper band edge (Hz); 200 Hz put wind energy into the log-mel bands of the real "
+                        "backgrounds' 127 Hz lines and raised the LR's false alarms (seventh pass)")
+        mic_wind_tilt_db: float = Field(default=-9.0, ge=-24.0, le=0.0, description=(
+            "its spectral tilt (dB/octave; 5 of the calibration half's 7 windy drone clips fall 6-16 dB from the "
+            "20-40 Hz to the 60-90 Hz band)"))
         recorder: bool = Field(default=True, description="pass the mix through the recording chain")
         microphone: RecorderConfig = Field(
             default_factory=lambda: RecorderConfig(agc_target_dbfs=(-28.0, -20.0), presence_hz=(4000.0, 10000.0)),
@@ -360,6 +382,7 @@ def _config_model():
                 if kind not in self.drone_size_m:
                     raise ValueError(f"drone_size_m: no size span for {kind!r}")
             spans = {"drone_speed_mps": self.drone_speed_mps, "elevation_deg": self.elevation_deg,
+                     "mic_wind_db": self.mic_wind_db, "mic_wind_gust_depth": self.mic_wind_gust_depth,
                      "helicopter_range_m": self.helicopter_range_m, "helicopter_height_m": self.helicopter_height_m,
                      "helicopter_rpm": self.helicopter_rpm, "helicopter_diameter_m": self.helicopter_diameter_m,
                      **{f"drone_size_m.{k}": v for k, v in self.drone_size_m.items()},
@@ -381,6 +404,14 @@ def _config_model():
             for i, (lo, _) in enumerate(self.drone_range_m):
                 if lo <= 0:
                     raise ValueError(f"drone_range_m[{i}]: ranges must be > 0, got {lo}")
+            lo, hi = self.mic_wind_gust_depth
+            if lo < 0 or hi > 1:
+                raise ValueError(f"mic_wind_gust_depth: must lie in [0, 1], got {(lo, hi)}")
+            for cls, p in self.mic_wind_probability.items():
+                if cls not in CLASSES:
+                    raise ValueError(f"mic_wind_probability: unknown class {cls!r}; expected one of {list(CLASSES)}")
+                if not 0.0 <= p <= 1.0:
+                    raise ValueError(f"mic_wind_probability.{cls}: must lie in [0, 1], got {p}")
             return self
 
     return SyntheticAudioConfig
@@ -502,6 +533,25 @@ def _retuned(cfg, timeline, rng: np.random.Generator):
     return dataclasses.replace(timeline, targets=targets)
 
 
+def _mic_wind(cfg, cls: str, rng: np.random.Generator, mix_pa: np.ndarray, clip_seed: int, n: int,
+              sample_rate_hz: float) -> np.ndarray:
+    """Flow noise on the microphone of one clip of class ``cls`` (Pa; zeros when the drawn switch is off):
+    with ``cfg.mic_wind_probability[cls]`` the gusty wind-on-microphone bed (:func:`acoustics.wind_bed`, band
+    edge ``cfg.mic_wind_high_hz``, tilt ``cfg.mic_wind_tilt_db``) at the RMS level of ``mix_pa`` (dB SPL) plus
+    a level drawn from ``cfg.mic_wind_db``, gust depth from ``cfg.mic_wind_gust_depth``. Always three draws
+    from ``rng`` (on/off, level, gust depth); the noise comes from the clip's acoustics stream
+    ``_MIC_WIND_SOURCE_INDEX``."""
+    from simulator.physics import acoustics as ac
+
+    on = bool(rng.random() < cfg.mic_wind_probability.get(cls, 0.0))
+    offset_db, gust = uniform(rng, cfg.mic_wind_db), uniform(rng, cfg.mic_wind_gust_depth)
+    if not on:
+        return np.zeros(n)
+    mix_db = float(ac.pa_to_db_spl(float(np.sqrt(np.mean(np.asarray(mix_pa, dtype=np.float64) ** 2)))))
+    return ac.wind_bed(rng_for(clip_seed, "acoustics", _MIC_WIND_SOURCE_INDEX), n, sample_rate_hz, mix_db + offset_db,
+                       gust, high_hz=cfg.mic_wind_high_hz, tilt_db_per_octave=cfg.mic_wind_tilt_db)
+
+
 def helicopter_available() -> bool:
     """True when the acoustic model has a helicopter source."""
     from simulator.physics import acoustics
@@ -552,6 +602,8 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
                 if machinery is not None:
                     mix = mix + ac.machinery_bed(rng_for(clip_seed, "acoustics", ac.MACHINERY_SOURCE_INDEX), n, sr,
                                                  machinery)
+            if cfg.mic_wind_probability.get(cls, 0.0) > 0:          # draws last: the draws before it stay put
+                mix = mix + _mic_wind(cfg, cls, rng, mix, clip_seed, n, sr)
             samples = _record(cfg, np.asarray(mix, dtype=np.float64), clip_seed, CLASSES.index(cls))
             clips.append(AudioClip(name=f"SYN_{cls}_{j + 1:03d}", cls=cls, number=j + 1, samples=samples,
                                    sample_rate=sr, half="synthetic"))
@@ -559,6 +611,7 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
 
 
 _SYNTH_TAG = 24          # "generation" sub-stream of the sim2real audio clips (issue 24)
+_MIC_WIND_SOURCE_INDEX = 1008     # acoustics stream of the clips' flow noise (after the beds 1000-1007)
 
 
 # --------------------------------------------------------------------------------------------

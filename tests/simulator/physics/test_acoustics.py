@@ -519,3 +519,47 @@ def test_helicopter_tail_lines_peak_at_the_drawn_harmonic():
     assert line_db(first, 3) - line_db(first, 1) == pytest.approx(-20 * np.log10(3), abs=1.5)
     assert line_db(third, 3) - line_db(third, 1) == pytest.approx(20 * np.log10(3), abs=1.5)
     assert line_db(third, 2) - line_db(third, 1) == pytest.approx(20 * np.log10(2), abs=1.5)
+
+
+def _levels_100ms_db(x: np.ndarray) -> np.ndarray:
+    hop = FS // 10
+    return 10 * np.log10(np.mean(x[: x.size // hop * hop].reshape(-1, hop) ** 2, axis=1))
+
+
+def test_helicopter_level_fluctuation_drawn_only_when_asked_and_keeps_the_mean_power():
+    """``level_fluctuation_db`` (module span (0, 0): nothing drawn, byte-identical) makes the received level
+    of a hovering helicopter wander by about the drawn std (100 ms levels; the steady source's own 100 ms
+    levels vary by < 1 dB) without changing its mean-square pressure (unit mean-square gain)."""
+    t = np.arange(0.0, 8.0 + 1.0 / 25.0, 1.0 / 25.0)
+    pos = np.tile([0.0, 150.0, 60.0], (t.size, 1))
+    track = TargetTrack(1, "h", "helicopter", 12.0, pos, np.zeros_like(pos), np.tile(np.eye(3), (t.size, 1, 1)),
+                        np.full((t.size, 1), 390.0), np.zeros(t.size), np.zeros(t.size), n_blades=3)
+    n = 8 * FS
+
+    def heli(ranges):
+        x, _ = ac.synthesize_target(track, t, MIC, n, FS, 288.15, 0.6, rng_for(5, "acoustics", 0),
+                                    helicopter_ranges=ranges)
+        return x
+
+    steady, explicit = heli(None), heli({"level_fluctuation_db": (0.0, 0.0)})
+    assert steady.tobytes() == explicit.tobytes()
+    wander = heli({"level_fluctuation_db": (4.0, 4.0), "level_fluctuation_hz": (1.0, 1.0)})
+    assert np.std(_levels_100ms_db(steady)) < 1.0
+    assert 2.5 < np.std(_levels_100ms_db(wander)) < 5.0
+    assert 10 * np.log10(np.mean(wander ** 2) / np.mean(steady ** 2)) == pytest.approx(0.0, abs=1.5)
+
+
+def test_wind_bed_band_edge_and_tilt():
+    """The defaults (15-500 Hz, -6 dB/octave) are the bed of before, byte-identical; a 200 Hz edge and -9
+    dB/octave put ~9 dB per octave between the 40 and 80 Hz octaves and nothing above the edge."""
+    n = 4 * FS
+    default = ac.wind_bed(rng_for(1, "acoustics", 0), n, FS, 60.0, 0.0)
+    explicit = ac.wind_bed(rng_for(1, "acoustics", 0), n, FS, 60.0, 0.0, high_hz=500.0, tilt_db_per_octave=-6.0)
+    assert default.tobytes() == explicit.tobytes()
+    steep = ac.wind_bed(rng_for(1, "acoustics", 0), n, FS, 60.0, 0.0, high_hz=200.0, tilt_db_per_octave=-9.0)
+    assert float(ac.pa_to_db_spl(np.sqrt(np.mean(steep ** 2)))) == pytest.approx(60.0, abs=0.01)
+    spec = np.abs(np.fft.rfft(steep)) ** 2
+    f = np.fft.rfftfreq(n, 1.0 / FS)
+    octave = lambda lo: 10 * np.log10(spec[(f >= lo) & (f < 2 * lo)].sum() / lo)   # noqa: E731  (per Hz)
+    assert octave(40.0) - octave(80.0) == pytest.approx(9.0, abs=1.5)
+    assert spec[f > 400].sum() < 1e-4 * spec.sum()

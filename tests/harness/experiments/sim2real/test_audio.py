@@ -274,3 +274,48 @@ def test_machinery_bed_reaches_every_class_and_nothing_when_off():
     f = np.fft.rfftfreq(x.size, 1.0 / SR)
     band = (f > 30) & (f < 300)
     assert f[band][np.argmax(spec[band])] == pytest.approx(50.0, abs=1.0)
+
+
+def test_mic_wind_reaches_the_named_classes_at_its_drawn_level():
+    """``mic_wind_probability`` adds gusty flow noise to the clips of the classes it names; 0 or an unnamed class
+    draws nothing (those clips byte-identical); the bed's level is the clip mix's level plus the drawn offset; on
+    or off, the same three draws; an unknown class or a gust depth over 1 is refused naming the field."""
+    cfg = {"duration_s": 2.0, "drone_range_m": [[10.0, 20.0]]}
+    off = A.synthetic_audio_clips({**cfg, "mic_wind_probability": {}}, 3, 1)
+    shipped = A.synthetic_audio_clips(cfg, 3, 1)                              # the default: drones only
+    assert [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(off, shipped)][1:] == [True, True]
+    never = A.synthetic_audio_clips({**cfg, "mic_wind_probability": {"DRONE": 0.0}, "mic_wind_db": [5.0, 5.0]}, 3, 1)
+    windy = A.synthetic_audio_clips({**cfg, "mic_wind_probability": {"DRONE": 1.0}, "mic_wind_db": [5.0, 5.0]}, 3, 1)
+    both = A.synthetic_audio_clips({**cfg, "mic_wind_probability": {"DRONE": 1.0, "BACKGROUND": 1.0},
+                                    "mic_wind_db": [5.0, 5.0]}, 3, 1)
+    assert [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(off, never)] == [True, True, True]
+    assert [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(off, windy)] == [False, True, True]
+    assert [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(windy, both)] == [True, True, False]
+
+    def band_db(x, lo, hi):
+        spec = np.abs(np.fft.rfft(x.astype(np.float64))) ** 2
+        f = np.fft.rfftfreq(x.size, 1.0 / SR)
+        return 10 * np.log10(spec[(f >= lo) & (f < hi)].sum())
+
+    # the recorder's AGC takes the total back to its target, so the wind shows as low-frequency share
+    lf_share = lambda clip: band_db(clip.samples, 30, 90) - band_db(clip.samples, 1000, 4000)   # noqa: E731
+    assert lf_share(windy[0]) - lf_share(off[0]) > 10.0
+    mix = np.random.default_rng(0).standard_normal(2 * SR) * _pa(70.0)
+    conf = A.synthetic_audio_config({"mic_wind_probability": {"DRONE": 1.0}, "mic_wind_db": [-6.0, -6.0]})
+    wind = A._mic_wind(conf, "DRONE", np.random.default_rng(1), mix, 9, mix.size, SR)
+    assert 20 * np.log10(np.sqrt(np.mean(wind ** 2)) / np.sqrt(np.mean(mix ** 2))) == pytest.approx(-6.0, abs=0.01)
+    calm = A.synthetic_audio_config({"mic_wind_probability": {"DRONE": 1e-12}})
+    a, b = np.random.default_rng(2), np.random.default_rng(2)
+    assert not np.any(A._mic_wind(calm, "DRONE", a, mix, 9, mix.size, SR))
+    A._mic_wind(conf, "DRONE", b, mix, 9, mix.size, SR)
+    assert a.random() == b.random()
+    with pytest.raises(UserInputError, match="mic_wind_gust_depth"):
+        A.synthetic_audio_config({"mic_wind_gust_depth": [0.5, 1.5]})
+    with pytest.raises(UserInputError, match="mic_wind_probability"):
+        A.synthetic_audio_config({"mic_wind_probability": {"BIRD": 0.5}})
+
+
+def _pa(level_db: float) -> float:
+    from simulator.physics.acoustics import db_spl_to_pa
+
+    return db_spl_to_pa(level_db)
