@@ -635,7 +635,8 @@ HELICOPTER_RANGES = {"main_blades": (2, 3, 3, 4, 4), "tail_ratio": (4.5, 6.5), "
                      "tip_noise_db": (-22.0, -10.0), "tail_db": (-20.0, -10.0),
                      "turbine_tones": (1, 3), "turbine_hz": (6000.0, 12000.0), "turbine_db": (-30.0, -16.0),
                      "turbine_noise_db": (-26.0, -14.0), "tail_peak_harmonic": (1.0, 1.0),
-                     "level_fluctuation_db": (0.0, 0.0), "level_fluctuation_hz": (0.3, 1.0)}
+                     "level_fluctuation_db": (0.0, 0.0), "level_fluctuation_hz": (0.3, 1.0),
+                     "band_high_hz": (AUDIO_BAND_HZ, AUDIO_BAND_HZ)}
 
 
 def _periodic_pulses(phase: np.ndarray, width: float, jitter: np.ndarray | None = None) -> np.ndarray:
@@ -657,11 +658,12 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
 
     ``main_rpm`` (scalar or per microphone sample) and ``main_blades`` come from the target's rotor
     (scene schema) when given, else they are drawn (``HELICOPTER_MAIN_RPM``, 2-4 blades). Parts, each
-    scaled re the rotor broadband: rotor broadband from 200-400 Hz to 16 kHz (tilt -8..-6 dB/octave) and
-    blade-tip self-noise 2-16 kHz (-1 dB/octave, -22..-10 dB), both with an exponential 'swish'
+    scaled re the rotor broadband: rotor broadband from 200-400 Hz to the upper edge ``band_high_hz`` (module:
+    16 kHz; above it clamped to 0.45 fs) (tilt -8..-6 dB/octave) and blade-tip self-noise 2 kHz to that edge
+    (-1 dB/octave, -22..-10 dB), both with an exponential 'swish'
     envelope at the BPF; thickness/loading thump (2-6 ms pulses at the BPF, per-pass
     jitter); blade slap (0.15-0.6 ms pulses); tail-rotor lines k x its BPF (k^-1); turbine: 1-3
-    wandering compressor tones at 6-12 kHz and 1-16 kHz noise. The sum is scaled to HELICOPTER_DB_1M.
+    wandering compressor tones at 6-12 kHz and noise from 1 kHz to the same edge. The sum is scaled to HELICOPTER_DB_1M.
     ``ranges`` replaces some (low, high) spans of ``HELICOPTER_RANGES`` (:func:`merged_ranges`).
     """
     r = merged_ranges(HELICOPTER_RANGES, ranges, "helicopter")
@@ -684,15 +686,21 @@ def helicopter_signature(retarded: Retarded, sample_rate_hz: float, rng: np.rand
     thump = _periodic_pulses(phase, u("thump_ms") / 1000.0 * bpf, jitter)
     slap = _periodic_pulses(phase, u("slap_ms") / 1000.0 * bpf, jitter[::-1])
     swish = np.exp(u("swish_depth") * _periodic_pulses(phase, u("swish_width")))
-    broad = _source_noise(rng, retarded, sample_rate_hz, u("broadband_low_hz"), 16000.0, u("broadband_tilt_db")) * swish
-    tip = _source_noise(rng, retarded, sample_rate_hz, 2000.0, 16000.0, -1.0) * swish
+    # upper edge of the broadband parts (rotor, tip, turbine noise): nothing in the sources stops at 16 kHz; the
+    # module's span (16, 16) kHz draws nothing and keeps every output; above 16 kHz it is clamped to 0.45 fs
+    edge_lo, edge_hi = (float(x) for x in r["band_high_hz"])
+    high = edge_lo if edge_lo == edge_hi else float(rng.uniform(edge_lo, edge_hi))
+    if high > AUDIO_BAND_HZ:
+        high = max(AUDIO_BAND_HZ, min(high, 0.45 * sample_rate_hz))
+    broad = _source_noise(rng, retarded, sample_rate_hz, u("broadband_low_hz"), high, u("broadband_tilt_db")) * swish
+    tip = _source_noise(rng, retarded, sample_rate_hz, 2000.0, high, -1.0) * swish
     k = np.arange(1, 16)
     tail_phases = rng.uniform(0, 2 * np.pi, size=(k.size, 1))
     turbine = np.zeros(tau.size)
     for _ in range(int(rng.integers(int(r["turbine_tones"][0]), int(r["turbine_tones"][1]) + 1))):
         f_t = u("turbine_hz") * (1 + 0.005 * _smooth_random(rng, tau.size, sample_rate_hz, 0.3))
         turbine += np.cos(2 * np.pi * np.cumsum(f_t) / sample_rate_hz + rng.uniform(0, 2 * np.pi))
-    turbine_noise = _source_noise(rng, retarded, sample_rate_hz, 1000.0, 16000.0, -2.0)
+    turbine_noise = _source_noise(rng, retarded, sample_rate_hz, 1000.0, high, -2.0)
     levels = [u(name) for name in ("tip_noise_db", "thump_db", "slap_db", "tail_db", "turbine_db", "turbine_noise_db")]
     # tail-rotor lines ~ k^-1 above its strongest harmonic, rising as (k / peak)^2 below it (peak 1: k^-1 from
     # the first line); drawn last, so a span of (1, 1) leaves every other draw and the lines as before

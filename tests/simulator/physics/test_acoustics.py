@@ -563,3 +563,44 @@ def test_wind_bed_band_edge_and_tilt():
     octave = lambda lo: 10 * np.log10(spec[(f >= lo) & (f < 2 * lo)].sum() / lo)   # noqa: E731  (per Hz)
     assert octave(40.0) - octave(80.0) == pytest.approx(9.0, abs=1.5)
     assert spec[f > 400].sum() < 1e-4 * spec.sum()
+
+
+def test_helicopter_band_edge_above_16_khz_follows_the_low_pass_gain():
+    """``band_high_hz`` (module span (16, 16) kHz: nothing drawn, byte-identical) is the upper edge of the
+    helicopter's broadband parts. With only the rotor broadband on and no swish, the same white-noise draws
+    are shaped by the 4th-order low-pass of ``_shaped_gain``, so the 17-19 kHz band gains, re the 2-4 kHz band,
+    the ratio of the two low-pass powers there (hand check at 18 kHz: 20 log10 of 1 / (1 + (18/16)^4) = -8.3 dB
+    against 1 / (1 + (18/20)^4) = -4.4 dB, so about +3.9 dB); the total stays at HELICOPTER_DB_1M; an edge above
+    0.45 fs is clamped to it."""
+    n = 2 * FS
+    ret = ac.Retarded(tau_s=np.arange(n) / FS, dtau_dt=np.ones(n), range_m=np.ones(n))
+    quiet = {k: (-200.0, -200.0) for k in ("tip_noise_db", "thump_db", "slap_db", "tail_db", "turbine_db",
+                                           "turbine_noise_db")}
+    spans = {**quiet, "swish_depth": (0.0, 0.0), "broadband_tilt_db": (-6.0, -6.0), "broadband_low_hz": (300.0, 300.0)}
+
+    def heli(extra):
+        return ac.helicopter_signature(ret, FS, rng_for(6, "acoustics", 0), main_rpm=390.0, main_blades=3,
+                                       ranges={**spans, **extra})
+
+    default, explicit = heli({}), heli({"band_high_hz": (16000.0, 16000.0)})
+    assert default.tobytes() == explicit.tobytes()
+    wide = heli({"band_high_hz": (20000.0, 20000.0)})
+    assert ac.pa_to_db_spl(np.sqrt(np.mean(wide ** 2))) == pytest.approx(ac.HELICOPTER_DB_1M, abs=1e-6)
+    f = np.fft.rfftfreq(n, 1.0 / FS)
+    hi, lo = (f > 17000) & (f < 19000), (f > 2000) & (f < 4000)
+
+    def rel_db(x):
+        p = np.abs(np.fft.rfft(x)) ** 2
+        return 10 * np.log10(p[hi].sum() / p[lo].sum())
+
+    lp = lambda edge: 1.0 / (1.0 + (f / edge) ** 4)            # noqa: E731 (amplitude, as _shaped_gain)
+    gain16, gain20 = lp(16000.0), lp(20000.0)
+    # white noise through the same tilt: the band ratio moves by the ratio of the low-pass powers
+    tilt_w = f[hi] ** (-6.0 / 6.0206 * 2)
+    expected = 10 * np.log10(np.sum(tilt_w * gain20[hi] ** 2) / np.sum(tilt_w * gain16[hi] ** 2))
+    expected -= 10 * np.log10(np.sum(f[lo] ** (-6.0 / 6.0206 * 2) * gain20[lo] ** 2)
+                              / np.sum(f[lo] ** (-6.0 / 6.0206 * 2) * gain16[lo] ** 2))
+    assert 3.4 < expected < 4.4
+    assert rel_db(wide) - rel_db(default) == pytest.approx(expected, abs=0.5)
+    clamped = heli({"band_high_hz": (30000.0, 30000.0)})
+    assert clamped.tobytes() == heli({"band_high_hz": (0.45 * FS, 0.45 * FS)}).tobytes()
