@@ -27,6 +27,7 @@ SPLITS = ("train", "val", "test")
 _S_PRESET, _S_SEED, _S_TARGET, _S_TRAJ, _S_SUN, _S_AIR, _S_PARTS, _S_CAMERA, _S_DISTRACT = range(1, 10)
 _S_BINS, _S_FOV, _S_MODE, _S_CLOUDS, _S_ELEV = range(10, 15)   # scene-realism fields (issue 23)
 _S_FRAME_WARM = 15                                              # multirotor frame warming (issue 23)
+_S_SENSOR = 16                                                  # camera-model settings (issue 23)
 _SPLIT_TAG = 1000
 
 
@@ -87,7 +88,55 @@ class DistanceBin(_Model):
 
 
 #: Randomisation fields dumped only when set (see Randomisation._dump)
-_OMIT_WHEN_UNSET = ("multirotor_frame_warming_k",)
+_OMIT_WHEN_UNSET = ("multirotor_frame_warming_k", "sensor")
+
+#: randomise.sensor fields: (camera_rig entry, its field, lowest, highest, lowest excluded); the bounds are
+#: the camera models' own (scenes.schema.ThermalCamera, RgbCamera, Recording; read noise: 1000 e, a sanity
+#: cap). The draws follow this order: append new fields at the end, never reorder (it would change datasets)
+SENSOR_FIELDS: dict[str, tuple[str, str, float, float, bool]] = {
+    "thermal_blur_sigma_px": ("thermal", "blur_sigma_px", 0.0, 10.0, False),
+    "thermal_netd_k": ("thermal", "netd_k", 0.0, 1.0, True),
+    "thermal_agc_plateau_fraction": ("thermal", "agc_plateau_fraction", 0.0, 1.0, True),
+    "thermal_agc_linear_fraction": ("thermal", "agc_linear_fraction", 0.0, 1.0, False),
+    "thermal_agc_gamma": ("thermal", "agc_gamma", 0.25, 4.0, False),
+    "thermal_agc_base_gain": ("thermal", "agc_base_gain", 0.0, 1.0, False),
+    "rgb_blur_sigma_px": ("rgb", "blur_sigma_px", 0.0, 10.0, False),
+    "rgb_read_noise_e": ("rgb", "read_noise_e", 0.0, 1000.0, False),
+    "rgb_ae_key": ("rgb", "ae_key", 0.0, 1.0, True),
+    "recording_crf": ("recording", "crf", 0.0, 51.0, False),
+    "thermal_agc_min_span_k": ("thermal", "agc_min_span_k", 0.0, 200.0, True),
+}
+
+
+class SensorRandomisation(_Model):
+    """Per-sequence draws of camera-model settings (domain randomisation where the real cameras' settings
+    are unknown: focus, noise, gain stage, exposure, encoder quality). Each field replaces the scenario's
+    value of the camera_rig field it names (``thermal_netd_k`` -> ``camera_rig.thermal.netd_k``);
+    ``recording_crf`` replaces the recording's rate control and needs ``camera_rig.recording``. Null: the
+    scenario's value. Units are the camera fields' own (K, pixels, electrons, fractions)."""
+
+    thermal_blur_sigma_px: Range | None = None
+    thermal_netd_k: Range | None = None
+    thermal_agc_plateau_fraction: Range | None = None
+    thermal_agc_linear_fraction: Range | None = None
+    thermal_agc_gamma: Range | None = None
+    thermal_agc_base_gain: Range | None = None
+    rgb_blur_sigma_px: Range | None = None
+    rgb_read_noise_e: Range | None = None
+    rgb_ae_key: Range | None = None
+    recording_crf: Range | None = None
+    thermal_agc_min_span_k: Range | None = None
+
+    @model_validator(mode="after")
+    def _bounds(self) -> "SensorRandomisation":
+        for name, (_, _, lo, hi, open_lo) in SENSOR_FIELDS.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            if value.min < lo or (open_lo and value.min <= lo) or value.max > hi:
+                side = "(" if open_lo else "["
+                raise ValueError(f"sensor.{name} must lie in {side}{lo:g}, {hi:g}], got [{value.min}, {value.max}]")
+        return self
 
 
 class Randomisation(_Model):
@@ -150,6 +199,8 @@ class Randomisation(_Model):
         "correlation time of the pointing error (scenes.schema.Tracking.error_period_s; null: its default)"))
     cloud_cover: Range | None = Field(default=None, description="sky.clouds.coverage, 0-1")
     terrain: Terrain | None = Field(default=None, description="the ground and horizon clutter of every sequence")
+    sensor: SensorRandomisation | None = Field(default=None, description=(
+        "per-sequence camera-model settings (blur, NETD, gain stage, exposure, H.264 CRF); null: the scenario's"))
 
     @model_serializer(mode="wrap")
     def _dump(self, handler):
@@ -352,7 +403,7 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
 
     Each step draws from its own sub-stream ``rng_for(seed, "generation", index, _S_...)``, in this
     order: primary target (kind, size), track (range, path, camera), sun, clouds, air, part
-    temperatures, multirotor frame warming, thermal-camera offset, distractors."""
+    temperatures, multirotor frame warming, thermal-camera offset, distractors, camera-model settings."""
     source = choose_source(config, seed, index)
     base = _load_source(source, base_dir)
     r = config.randomise
@@ -383,6 +434,8 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
         _draw_frame_warming(r.multirotor_frame_warming_k, targets, stream(_S_FRAME_WARM))
     _draw_camera_offset(r, rig["thermal_offset"], stream(_S_CAMERA))
     _draw_distractors(r, targets, targets[p], rig, base, cam_pos, duration, stream(_S_DISTRACT))
+    if r.sensor is not None:
+        _draw_sensor(r.sensor, rig, stream(_S_SENSOR))
 
     w, h = config.image_size
     tw, th = config.thermal_image_size or config.image_size
@@ -550,6 +603,23 @@ def _draw_camera_offset(r: Randomisation, off: dict, rng: np.random.Generator) -
     if r.camera_translation_m is not None:
         tx = r.camera_translation_m.min + (r.camera_translation_m.max - r.camera_translation_m.min) * draws[2]
         off["translation_m"] = (round(tx, 5), off["translation_m"][1], off["translation_m"][2])
+
+
+def _draw_sensor(sensor: SensorRandomisation, rig: dict, rng: np.random.Generator) -> None:
+    """One draw per ``SENSOR_FIELDS`` entry in its fixed order, made whether or not it is configured (so
+    switching one field on never moves another's value); each configured one replaces its camera field."""
+    from scenes.errors import UserInputError
+
+    draws = rng.random(len(SENSOR_FIELDS))
+    for draw, (name, (entry, field, _, _, _)) in zip(draws, SENSOR_FIELDS.items()):
+        value = getattr(sensor, name)
+        if value is None:
+            continue
+        if rig.get(entry) is None:
+            raise UserInputError(f"randomise.sensor.{name}: the scenario has no camera_rig.{entry}")
+        rig[entry][field] = round(at(_span(value), float(draw)), 5)
+        if name == "recording_crf":
+            rig[entry]["bit_rate_bps"] = None
 
 
 def _draw_distractors(r: Randomisation, targets: list[dict], primary: dict, rig: dict, base: Scenario,

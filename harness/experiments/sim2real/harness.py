@@ -144,6 +144,25 @@ def _label(image: np.ndarray, text: str) -> np.ndarray:
     return np.concatenate([bar, image], axis=0)
 
 
+#: row label of each (domain, half) on the contact sheets
+ROW_LABELS = {("real", "calibration"): "real (calibration half)", ("synthetic", "synthetic"): "synthetic"}
+
+
+def labelled_sheet(rows: list[tuple[str, np.ndarray]], gap_px: int = 0) -> np.ndarray:
+    """One contact sheet of labelled rows: each RGB (or grey) uint8 row under a white bar with its label in
+    black text, rows padded on the right to the widest, ``gap_px`` white pixels between rows."""
+    width = max(r.shape[1] for _, r in rows)
+    out = []
+    for i, (text, row) in enumerate(rows):
+        row = row if row.ndim == 3 else np.repeat(row[..., None], 3, axis=2)
+        if row.shape[1] < width:
+            row = np.concatenate([row, np.full((row.shape[0], width - row.shape[1], 3), 255, np.uint8)], axis=1)
+        out.append(_label(row.astype(np.uint8), text))
+        if gap_px and i < len(rows) - 1:
+            out.append(np.full((gap_px, width, 3), 255, np.uint8))
+    return np.concatenate(out, axis=0)
+
+
 def _pick(items: list, k: int, rng: np.random.Generator) -> list:
     if len(items) <= k:
         return items
@@ -153,21 +172,21 @@ def _pick(items: list, k: int, rng: np.random.Generator) -> list:
 def write_sheets(samples: list[FrameSample], clips: list[ClipSummary], sensor: str, classes: list[str], sheets: Path,
                  rng: np.random.Generator) -> dict[str, str]:
     """Contact sheets, real (calibration half) | synthetic per class: target crops, background patches,
-    whole frames. Returns {kind: file name}."""
+    whole frames, each row labelled with its class and source. Returns {kind: file name}."""
     import cv2
 
     out = {}
     for kind in ("crops", "backgrounds"):
         rows = []
         for cls in classes:
-            for domain, half in (("real", "calibration"), ("synthetic", "synthetic")):
+            for (domain, half), source in ROW_LABELS.items():
                 pool = [s for s in samples if s.sensor == sensor and s.cls == cls and s.domain == domain
                         and s.half == half]
                 imgs = [s.crop for s in pool if s.crop.size] if kind == "crops" else \
                     [s.background for s in pool if s.background is not None]
-                rows.append(_label(_tile(_pick(imgs, 12, rng), 64, 12), f"{cls} {domain}"))
+                rows.append((f"{cls}: {source}", _tile(_pick(imgs, 12, rng), 64, 12)))
         name = f"{sensor}_{kind}.png"
-        _write_png(sheets / name, np.concatenate(rows, axis=0))
+        _write_png(sheets / name, labelled_sheet(rows))
         out[kind] = name
     rows = []
     for cls in classes:

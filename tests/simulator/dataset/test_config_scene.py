@@ -149,3 +149,56 @@ def test_an_unset_frame_warming_is_left_out_of_the_dump_and_a_set_one_round_trip
     dumped = warm.model_dump(mode="json")
     assert dumped["randomise"]["multirotor_frame_warming_k"] == {"min": 0.0, "max": 8.0}
     assert load_generation_config(dumped) == warm
+
+
+SENSOR = {"thermal_blur_sigma_px": [0.2, 1.0], "thermal_netd_k": [0.02, 0.06], "thermal_agc_gamma": [1.1, 1.5],
+          "rgb_ae_key": [0.2, 0.3]}
+
+
+def test_sensor_draws_replace_only_their_camera_fields_and_leave_every_other_draw_alone():
+    plain, varied = _cfg(), _cfg(sensor=SENSOR)
+    netd = []
+    for i in range(6):
+        a, b = randomised_scenario(plain, 3, i)[1], randomised_scenario(varied, 3, i)[1]
+        th, rgb = b.camera_rig.thermal, b.camera_rig.rgb
+        assert 0.2 <= th.blur_sigma_px <= 1.0 and 0.02 <= th.netd_k <= 0.06 and 1.1 <= th.agc_gamma <= 1.5
+        assert 0.2 <= rgb.ae_key <= 0.3
+        netd.append(th.netd_k)
+        # every other camera field and every other draw is the plain config's
+        assert a.camera_rig.thermal.model_copy(update={"blur_sigma_px": th.blur_sigma_px, "netd_k": th.netd_k,
+                                                       "agc_gamma": th.agc_gamma}) == th
+        assert a.camera_rig.rgb.model_copy(update={"ae_key": rgb.ae_key}) == rgb
+        assert a.model_copy(update={"camera_rig": b.camera_rig}) == b
+    assert len(set(netd)) == 6                                                     # one draw per sequence
+    assert randomised_scenario(varied, 3, 2)[1] == randomised_scenario(varied, 3, 2)[1]   # deterministic per seed
+    # switching a field on never moves another field's value
+    fewer = _cfg(sensor={"thermal_netd_k": [0.02, 0.06]})
+    assert randomised_scenario(fewer, 3, 1)[1].camera_rig.thermal.netd_k == netd[1]
+
+
+def test_sensor_fields_are_checked_against_the_camera_bounds_and_named():
+    with pytest.raises(UserInputError, match="sensor.thermal_netd_k"):
+        _cfg(sensor={"thermal_netd_k": [0.0, 0.05]})
+    with pytest.raises(UserInputError, match="sensor.recording_crf"):
+        _cfg(sensor={"recording_crf": [20, 60]})
+    with pytest.raises(UserInputError, match="thermal_noise"):
+        _cfg(sensor={"thermal_noise": [0.1, 0.2]})
+    # a CRF draw needs a recording stage in the scenario
+    with pytest.raises(UserInputError, match="randomise.sensor.recording_crf"):
+        randomised_scenario(_cfg(sensor={"recording_crf": [24, 32]}), 3, 0)
+
+
+def test_an_unset_sensor_randomiser_is_left_out_of_the_dump_and_a_set_one_round_trips():
+    plain, varied = _cfg(), _cfg(sensor=SENSOR)
+    assert "sensor" not in plain.model_dump(mode="json")["randomise"]
+    dumped = varied.model_dump(mode="json")
+    assert dumped["randomise"]["sensor"]["thermal_netd_k"] == {"min": 0.02, "max": 0.06}
+    assert load_generation_config(dumped) == varied
+
+
+def test_a_crf_draw_replaces_the_recordings_rate_control():
+    from simulator.dataset.config import SensorRandomisation, _draw_sensor
+
+    rig = {"recording": {"codec": "h264", "crf": None, "bit_rate_bps": 40000}}
+    _draw_sensor(SensorRandomisation(recording_crf=[24, 32]), rig, np.random.default_rng(0))
+    assert 24 <= rig["recording"]["crf"] <= 32 and rig["recording"]["bit_rate_bps"] is None

@@ -199,3 +199,32 @@ def test_outputs_do_not_depend_on_the_order_forked_jobs_finish_in(quick_run, tmp
     assert files
     differ = [str(f) for f in files if (out / f).read_bytes() != (rerun / f).read_bytes()]
     assert not differ, differ
+
+
+def test_contact_sheets_are_written_with_a_label_bar_over_every_row(tmp_path):
+    """Each row of the crop and background sheets sits under a bar naming its class and source (real
+    calibration half or synthetic); the whole-frame sheet is still written."""
+    import cv2
+
+    from harness.experiments.sim2real.harness import ROW_LABELS, labelled_sheet, write_sheets
+
+    rng = np.random.default_rng(0)
+    crop = rng.integers(0, 255, (32, 32), dtype=np.uint8)
+    pool = [samples.FrameSample(domain=d, sensor="ir", cls=c, clip=f"{c}_{d}", half=h, frame=0, crop=crop,
+                                background=crop)
+            for c in ("DRONE", "BIRD") for (d, h) in ROW_LABELS]
+    clips = [samples.ClipSummary(domain=d, sensor="ir", cls=c, clip=f"{c}_{d}", half=h, n_frames=1,
+                                 absent_fraction=0.0, thumbnail=np.zeros((48, 64), np.uint8))
+             for c in ("DRONE", "BIRD") for (d, h) in ROW_LABELS]
+    files = write_sheets(pool, clips, "ir", ["DRONE", "BIRD"], tmp_path, np.random.default_rng(0))
+    assert set(files) == {"crops", "backgrounds", "frames"}
+    sheet = cv2.imread(str(tmp_path / files["crops"]))
+    bar, row = 18, 64
+    assert sheet.shape[0] == 4 * (bar + row)
+    for k in range(4):
+        top = sheet[k * (bar + row): k * (bar + row) + bar]
+        assert (top < 128).any() and (top == 255).mean() > 0.8          # dark text on a white bar
+    assert (tmp_path / files["frames"]).stat().st_size > 1000
+    # rows of different widths are padded to the widest, with the gap between rows
+    out = labelled_sheet([("a", np.zeros((10, 20), np.uint8)), ("b", np.zeros((10, 30, 3), np.uint8))], gap_px=2)
+    assert out.shape == (2 * (bar + 10) + 2, 30, 3)
