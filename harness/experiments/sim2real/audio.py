@@ -16,9 +16,11 @@ seed only (``rng_for(seed, "generation", ...)`` streams).
 """
 from __future__ import annotations
 
+import functools
 import json
+import operator
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -600,7 +602,7 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
                                           duration_s=cfg.duration_s, sample_rate_hz=sr,
                                           helicopter_ranges=cfg.helicopter).mix_pa
             else:
-                mix = sum(ac.synthesize_ambience(ambience, n, sr, clip_seed).values())
+                mix = functools.reduce(operator.add, ac.synthesize_ambience(ambience, n, sr, clip_seed).values())
             if cfg.machinery is not None:                          # draws last: the draws before it stay put
                 machinery = ac.draw_machinery(rng, cfg.machinery)
                 if machinery is not None:
@@ -767,7 +769,7 @@ def _bootstrap_indices(test: _Windows, clips: list[AudioClip], rng: np.random.Ge
     return out
 
 
-def _ci(values: list[float]) -> list[float]:
+def _ci(values: Sequence[float] | np.ndarray) -> list[float]:
     v = np.asarray(values, dtype=np.float64)
     v = v[np.isfinite(v)]
     return [float(np.percentile(v, 2.5)), float(np.percentile(v, 97.5))] if v.size else [float("nan")] * 2
@@ -913,10 +915,10 @@ def run_audio_track(real_clips: list[AudioClip], synthetic_clips: list[AudioClip
                 aucs = [roc_auc(w_ev.y, s) for s in runs]
                 baccs = [balanced_accuracy(w_ev.y, s) for s in runs]
                 b_auc = np.array([np.mean([roc_auc(w_ev.y[i], s[i]) for s in runs]) for i in boot])
-                b_bacc = [np.mean([balanced_accuracy(w_ev.y[i], s[i]) for s in runs]) for i in boot]
+                b_bacc = [float(np.mean([balanced_accuracy(w_ev.y[i], s[i]) for s in runs])) for i in boot]
                 boot_auc[cond] = b_auc
                 res[cond] = {"description": CONDITIONS[cond], "roc_auc": float(np.mean(aucs)),
-                             "roc_auc_ci95": _ci(list(b_auc)),
+                             "roc_auc_ci95": _ci(b_auc),
                              "roc_auc_per_seed": [float(a) for a in aucs], "balanced_accuracy": float(np.mean(baccs)),
                              "balanced_accuracy_ci95": _ci(b_bacc),
                              "helicopter_called_drone": float(np.mean([np.mean(s[heli] > 0.5) for s in runs]))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Callable
 
@@ -18,8 +19,9 @@ from harness.experiments.sim2real import classify
 from harness.experiments.sim2real.config import Sim2RealConfig, load_config
 from harness.experiments.sim2real.samples import STAT_NAMES, ClipSummary, FrameSample
 from simulator.files import write_atomic
+from simulator.formats.svanstrom import Sensor
 
-VISUAL_SENSORS = ("ir", "visible")
+VISUAL_SENSORS: tuple[Sensor, ...] = ("ir", "visible")
 
 
 def _real_job(clip, params: dict) -> tuple[list[FrameSample], ClipSummary | None, str | None]:
@@ -92,7 +94,7 @@ def _generation_config(cfg: Sim2RealConfig, cls: str, base_dir: Path, quick: boo
     return validate_mapping(GenerationConfig, data, f"sim2real config: visual.classes.{cls}.generation")
 
 
-def _stat_summary(values: list[float]) -> dict[str, float] | None:
+def _stat_summary(values: Sequence[float | None]) -> dict[str, float] | None:
     v = np.asarray([x for x in values if x is not None and np.isfinite(x)], np.float64)
     if v.size == 0:
         return None
@@ -111,6 +113,7 @@ def statistics_table(samples: list[FrameSample], clips: list[ClipSummary], senso
         for stat in (*STAT_NAMES, "absent_fraction"):
             row: dict[str, Any] = {}
             for key, (domain, half) in groups.items():
+                vals: list[float | None]
                 if stat == "absent_fraction":
                     vals = [c.absent_fraction for c in clips if c.sensor == sensor and c.cls == cls
                             and c.domain == domain and c.half == half]
@@ -177,7 +180,7 @@ def write_sheets(samples: list[FrameSample], clips: list[ClipSummary], sensor: s
 
     out = {}
     for kind in ("crops", "backgrounds"):
-        rows = []
+        rows: list[tuple[str, np.ndarray]] = []
         for cls in classes:
             for (domain, half), source in ROW_LABELS.items():
                 pool = [s for s in samples if s.sensor == sensor and s.cls == cls and s.domain == domain
@@ -188,7 +191,7 @@ def write_sheets(samples: list[FrameSample], clips: list[ClipSummary], sensor: s
         name = f"{sensor}_{kind}.png"
         _write_png(sheets / name, labelled_sheet(rows))
         out[kind] = name
-    rows = []
+    frame_rows: list[np.ndarray] = []
     for cls in classes:
         row = []
         for domain, half in (("real", "calibration"), ("synthetic", "synthetic")):
@@ -198,9 +201,9 @@ def write_sheets(samples: list[FrameSample], clips: list[ClipSummary], sensor: s
                 im = np.full((128, 160, 3), 40, np.uint8) if im is None else im
                 im = im if im.ndim == 3 else np.repeat(im[..., None], 3, axis=2)
                 row.append(cv2.resize(im, (160, 128), interpolation=cv2.INTER_AREA))
-        rows.append(_label(np.concatenate(row, axis=1), f"{cls}: real (calibration half) x3 | synthetic x3"))
+        frame_rows.append(_label(np.concatenate(row, axis=1), f"{cls}: real (calibration half) x3 | synthetic x3"))
     name = f"{sensor}_frames.png"
-    _write_png(sheets / name, np.concatenate(rows, axis=0))
+    _write_png(sheets / name, np.concatenate(frame_rows, axis=0))
     out["frames"] = name
     return out
 
@@ -242,7 +245,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                                              "even = evaluation half (reported numbers)",
                                "sensors": {}, "timings_s": {}}
     skipped: list[str] = []
-    sensors = [s for s in cfg.sensors if s in VISUAL_SENSORS]
+    sensors = [v for s in cfg.sensors for v in VISUAL_SENSORS if v == s]    # the config's order, typed
 
     # 1. real samples -----------------------------------------------------------------------------
     t = time.time()
