@@ -9,7 +9,7 @@ import datetime as dt
 import math
 from typing import Annotated, Final, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
 
 from scenes.terrain_assets import check_asset
 
@@ -293,6 +293,18 @@ class ThermalCamera(CameraIntrinsics):
     agc_gamma: float = Field(default=1.0, ge=0.25, le=4.0,
                              description="plateau: gamma on the transfer (FLIR ACE; > 1: more grey levels for hot "
                                          "content, darker sky; 1 = off)")
+    agc_mean_level: float | None = Field(default=None, gt=0.0, lt=1.0,
+                                         description="plateau: the frame's mean output pinned at this fraction of "
+                                                     "the range (FLIR ITT mean / brightness; None = off)")
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        """``agc_mean_level`` (added after the scenario format froze) is left out while unset, so a
+        scenario without it keeps its scenario.yaml bytes and every dataset hash."""
+        data = handler(self)
+        if isinstance(data, dict) and data.get("agc_mean_level", 0) is None:
+            del data["agc_mean_level"]
+        return data
 
     @model_validator(mode="after")
     def _counts_cover_scene(self) -> "ThermalCamera":

@@ -61,6 +61,22 @@ def plateau_transfer(hist: np.ndarray, plateau_fraction: float, linear_fraction:
     return transfer
 
 
+def pin_mean(shown: np.ndarray, hist: np.ndarray, mean_level: float, iterations: int = 40) -> np.ndarray:
+    """``shown`` (transfer in [0, 1] per bin) raised to the exponent q in [1/8, 8] whose pixel mean over
+    ``hist`` is ``mean_level`` (bisection in log q; the mean falls as q rises)."""
+    occupied = hist > 0
+    t = np.clip(shown[occupied], 0.0, 1.0)
+    w = hist[occupied] / hist[occupied].sum()
+    lo, hi = -np.log(8.0), np.log(8.0)
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        if float(w @ t ** np.exp(mid)) > mean_level:
+            lo = mid
+        else:
+            hi = mid
+    return np.clip(shown, 0.0, 1.0) ** np.exp(0.5 * (lo + hi))
+
+
 @dataclass
 class PlateauAgc:
     """Plateau histogram equalisation of uint16 counts -> uint8, with the transfer damped over frames."""
@@ -75,6 +91,7 @@ class PlateauAgc:
     base_sigma_px: float = 0.0
     base_gain: float = 1.0
     gamma: float = 1.0
+    mean_level: float | None = None
     _transfer: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -114,6 +131,8 @@ class PlateauAgc:
         else:
             self._transfer = self.damping * self._transfer + (1.0 - self.damping) * raw
         shown = self._transfer if self.gamma == 1.0 else self._transfer ** self.gamma   # ACE: hot content gets more
+        if self.mean_level is not None:
+            shown = pin_mean(shown, np.bincount(binned, minlength=self.n_bins), self.mean_level)
         lut = np.rint(shown * 255.0).astype(np.uint8)
         return lut[binned].reshape(counts.shape)
 

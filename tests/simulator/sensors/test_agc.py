@@ -154,3 +154,29 @@ def test_protocol_gain_lifts_a_clear_sky_over_warm_ground():
     assert np.median(now[:150]) > np.median(former[:150]) + 15                   # the clear sky is lifted
     assert now[81, 152] == 255                                                   # the target stays white
     assert np.median(shown(cloudy, 0.3, 0.05, 1.5)) > np.median(former) + 5      # clouds lifted the old fit's frame
+
+
+def test_mean_level_pins_the_frame_mean_and_is_off_by_default():
+    """agc_mean_level (FLIR ITT mean): skies of different temperature spreads print at one output mean;
+    unset, the output is the same array as before the option existed; the pin keeps the order of grey levels."""
+    from scenes.schema import ThermalCamera
+
+    rng = np.random.default_rng(3)
+    y = np.mgrid[0:64, 0:80][0].astype(float)
+    args = (0.01, 0.05, 0.005, 0.1, 0.0, 16.0, 0.0, 15.0, 0.02, 1.3)
+    means = []
+    for span in (500, 3000):                                                     # a 5 K and a 30 K sky gradient
+        counts = (26000 + span * (y / 64) ** 2 + 3 * rng.standard_normal(y.shape)).astype(np.uint16)
+        counts[30:32, 40:42] = 30000                                              # a hot target
+        plain = PlateauAgc(*args)(counts)
+        assert np.array_equal(plain, PlateauAgc(*args, mean_level=None)(counts))
+        pinned = PlateauAgc(*args, mean_level=0.41)(counts).astype(float)
+        assert abs(pinned.mean() - 0.41 * 255) < 2.0
+        order = np.lexsort((pinned.ravel(), plain.ravel()))
+        assert np.all(np.diff(pinned.ravel()[order]) >= 0)                        # a monotonic map of the old view
+        means.append(plain.astype(float).mean())
+    assert abs(means[0] - means[1]) > 10                                         # without the pin they differ
+    assert "agc_mean_level" not in ThermalCamera().model_dump(mode="json")       # scenario.yaml bytes unchanged
+    assert ThermalCamera(agc_mean_level=0.41).model_dump(mode="json")["agc_mean_level"] == 0.41
+    with pytest.raises(ValueError):
+        ThermalCamera(agc_mean_level=1.0)

@@ -201,10 +201,16 @@ def test_metadata_records_every_sensor_parameter():
     tl = _timeline()
     meta = cam.CameraModel(tl, 10.0).metadata()
     for field in ThermalCamera.model_fields:
+        if field == "agc_mean_level":                     # opt-in, left out of every dump while unset
+            assert field not in meta["thermal"]
+            continue
         assert field in meta["thermal"]
     for field in type(tl.scenario.camera_rig.rgb).model_fields:
         assert field in meta["rgb"]
     assert 0.6 < meta["thermal"]["psf_centre_pixel_fraction"] < 0.66
+    pinned = cam.CameraModel(_timeline(agc="plateau", agc_mean_level=0.41), 10.0)
+    assert pinned.metadata()["thermal"]["agc_mean_level"] == 0.41                 # recorded once set
+    assert pinned.thermal._plateau.mean_level == 0.41                            # and passed to the gain stage
 
 
 def test_14_bit_counts_clip_and_need_a_coarse_enough_scale():
