@@ -350,6 +350,26 @@ def _config_model():
             description="a tonal machinery bed (mains hum, fans, engines: acoustics.machinery_bed) drawn for every "
                         "clip of every class (one distribution, no class cue); None: off. Off by default: probed in "
                         "the sixth pass (docs/SIM2REAL_AUDIO.md), it raised the log-mel LR's false alarms")
+        background_ambience: AmbienceDistribution | None = Field(
+            default=None,
+            description="the BACKGROUND clips' ambience distribution (None: ``ambience``, as for the drones and "
+                        "helicopters); the same draws are made whenever every bed probability is > 0 in both "
+                        "(acoustics.draw_ambience), so the other classes' clips stay put (ninth pass)")
+        background_broadband_probability: float = Field(
+            default=0.0, ge=0.0, le=1.0,
+            description="BACKGROUND clips only: the share carrying a flat, line-free broadband bed (distant road "
+                        "traffic, wind in foliage; acoustics._shaped_noise with a slow drift); 0: off, nothing drawn "
+                        "(ninth pass, docs/SIM2REAL_AUDIO.md)")
+        background_broadband_db: Span = Field(default=(30.0, 44.0), description="its level (dB SPL)")
+        background_broadband_band_hz: Span = Field(default=(100.0, 6000.0), description="its band (Hz)")
+        background_broadband_tilt_db: Span = Field(default=(-3.0, 0.0), description="its tilt (dB/octave)")
+        background_insect_probability: float = Field(
+            default=0.0, ge=0.0, le=1.0,
+            description="BACKGROUND clips only: the share carrying high-frequency calls (insects, small birds: "
+                        "Poisson chirps at 4-10 kHz by default); 0: off, nothing drawn (ninth pass)")
+        background_insect_db: Span = Field(default=(20.0, 34.0), description="its level (dB SPL)")
+        background_insect_band_hz: Span = Field(default=(4000.0, 10000.0),
+                                                description="its calls' start-frequency span (Hz)")
         mic_wind_probability: dict[str, float] = Field(
             default_factory=lambda: {"DRONE": 0.6},
             description="per class (DRONE / HELICOPTER / BACKGROUND), the share of clips with flow noise on the "
@@ -391,6 +411,11 @@ def _config_model():
                      "mic_wind_db": self.mic_wind_db, "mic_wind_gust_depth": self.mic_wind_gust_depth,
                      "helicopter_range_m": self.helicopter_range_m, "helicopter_height_m": self.helicopter_height_m,
                      "helicopter_rpm": self.helicopter_rpm, "helicopter_diameter_m": self.helicopter_diameter_m,
+                     "background_broadband_db": self.background_broadband_db,
+                     "background_broadband_band_hz": self.background_broadband_band_hz,
+                     "background_broadband_tilt_db": self.background_broadband_tilt_db,
+                     "background_insect_db": self.background_insect_db,
+                     "background_insect_band_hz": self.background_insect_band_hz,
                      **{f"drone_size_m.{k}": v for k, v in self.drone_size_m.items()},
                      **{f"drone_range_m[{i}]": v for i, v in enumerate(self.drone_range_m)}}
             floors = (("drone_bpf_hz", "> 0"), ("drone_rpm_wander", ">= 0"), ("drone_rpm_wander_time_s", "> 0"))
@@ -558,6 +583,38 @@ def _mic_wind(cfg, cls: str, rng: np.random.Generator, mix_pa: np.ndarray, clip_
                        gust, high_hz=cfg.mic_wind_high_hz, tilt_db_per_octave=cfg.mic_wind_tilt_db)
 
 
+def _background_beds(cfg, rng: np.random.Generator, clip_seed: int, n: int, sample_rate_hz: float) -> np.ndarray:
+    """The BACKGROUND-only beds of one clip (Pa; zeros when both are off or not drawn): a flat broadband bed
+    with ``cfg.background_broadband_probability`` (band, tilt and level drawn from their spans, a slow 3 dB
+    drift) and high-frequency calls with ``cfg.background_insect_probability``. A bed whose probability is 0
+    draws nothing; otherwise always on/off, level and (broadband) band and tilt, so the draws do not depend on
+    the outcome. Noise from the clip's acoustics streams ``_BROADBAND_SOURCE_INDEX`` / ``_INSECT_SOURCE_INDEX``."""
+    from simulator.physics import acoustics as ac
+
+    out = np.zeros(n)
+    if cfg.background_broadband_probability > 0:
+        on = bool(rng.random() < cfg.background_broadband_probability)
+        level = uniform(rng, cfg.background_broadband_db)
+        lo_hz, hi_hz = cfg.background_broadband_band_hz
+        tilt = uniform(rng, cfg.background_broadband_tilt_db)
+        if on:
+            src = rng_for(clip_seed, "acoustics", _BROADBAND_SOURCE_INDEX)
+            base = ac._shaped_noise(src, n, sample_rate_hz, lo_hz, min(hi_hz, 0.45 * sample_rate_hz), tilt)
+            drift = 10 ** (3.0 * ac._smooth_random(src, n, sample_rate_hz, 0.2) / 20)
+            out = out + ac._scale_to(base * drift, level)
+    if cfg.background_insect_probability > 0:
+        on = bool(rng.random() < cfg.background_insect_probability)
+        level = uniform(rng, cfg.background_insect_db)
+        if on:
+            src = rng_for(clip_seed, "acoustics", _INSECT_SOURCE_INDEX)
+            lo_hz, hi_hz = cfg.background_insect_band_hz
+            calls = ac._chirp_events(src, n, sample_rate_hz, 6.0, (lo_hz, min(hi_hz, 0.4 * sample_rate_hz)),
+                                     (0.05, 0.4))
+            if np.any(calls):
+                out = out + ac._scale_to(calls, level)
+    return out
+
+
 def helicopter_available() -> bool:
     """True when the acoustic model has a helicopter source."""
     from simulator.physics import acoustics
@@ -589,7 +646,8 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
         for j in range(n_per_class):
             rng = rng_for(seed, "generation", _SYNTH_TAG, CLASSES.index(cls), j)
             clip_seed = int(rng.integers(0, 2 ** 31 - 1))
-            ambience = ac.draw_ambience(rng, cfg.ambience)
+            dist = cfg.background_ambience if cls == "BACKGROUND" and cfg.background_ambience else cfg.ambience
+            ambience = ac.draw_ambience(rng, dist)
             if cls == "DRONE":
                 scenario, _ = _drone_scenario(cfg, rng, f"synthetic_drone_{j:04d}")
                 timeline = build_timeline(scenario, clip_seed)
@@ -610,6 +668,8 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
                                                  machinery)
             if cfg.mic_wind_probability.get(cls, 0.0) > 0:          # draws last: the draws before it stay put
                 mix = mix + _mic_wind(cfg, cls, rng, mix, clip_seed, n, sr)
+            if cls == "BACKGROUND":                                  # draws last: the draws before it stay put
+                mix = mix + _background_beds(cfg, rng, clip_seed, n, sr)
             samples = _record(cfg, np.asarray(mix, dtype=np.float64), clip_seed, CLASSES.index(cls))
             clips.append(AudioClip(name=f"SYN_{cls}_{j + 1:03d}", cls=cls, number=j + 1, samples=samples,
                                    sample_rate=sr, half="synthetic"))
@@ -618,6 +678,8 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
 
 _SYNTH_TAG = 24          # "generation" sub-stream of the sim2real audio clips (issue 24)
 _MIC_WIND_SOURCE_INDEX = 1008     # acoustics stream of the clips' flow noise (after the beds 1000-1007)
+_BROADBAND_SOURCE_INDEX = 1009   # acoustics stream of the BACKGROUND clips' flat broadband bed (ninth pass)
+_INSECT_SOURCE_INDEX = 1010      # acoustics stream of the BACKGROUND clips' high-frequency calls (ninth pass)
 
 
 # --------------------------------------------------------------------------------------------

@@ -315,6 +315,35 @@ def test_mic_wind_reaches_the_named_classes_at_its_drawn_level():
         A.synthetic_audio_config({"mic_wind_probability": {"BIRD": 0.5}})
 
 
+def test_background_only_beds_reach_only_the_background_clips():
+    """``background_ambience`` and the background beds (flat broadband, high-frequency calls) change only the
+    BACKGROUND clips (drone and helicopter byte-identical); probability 0 / None leaves every clip
+    byte-identical; the broadband bed lands at its drawn level inside its band; a reversed span is refused."""
+    cfg = {"duration_s": 2.0, "drone_range_m": [[10.0, 20.0]]}
+    off = A.synthetic_audio_clips(cfg, 3, 1)
+    never = A.synthetic_audio_clips({**cfg, "background_broadband_probability": 0.0,
+                                     "background_insect_probability": 0.0, "background_ambience": None}, 3, 1)
+    assert [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(off, never)] == [True, True, True]
+    for extra in ({"background_broadband_probability": 1.0}, {"background_insect_probability": 1.0},
+                  {"background_ambience": {"birdsong_probability": 0.25, "wind_db": [12.0, 30.0]}}):
+        on = A.synthetic_audio_clips({**cfg, **extra}, 3, 1)
+        assert [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(off, on)] == [True, True, False], extra
+    conf = A.synthetic_audio_config({"background_broadband_probability": 1.0, "background_broadband_db": [60.0, 60.0],
+                                     "background_broadband_band_hz": [500.0, 2000.0],
+                                     "background_broadband_tilt_db": [0.0, 0.0]})
+    bed = A._background_beds(conf, np.random.default_rng(1), 9, 2 * SR, SR)
+    assert 20 * np.log10(np.sqrt(np.mean(bed ** 2)) / _pa(60.0)) == pytest.approx(0.0, abs=0.01)
+    spec = np.abs(np.fft.rfft(bed)) ** 2
+    f = np.fft.rfftfreq(bed.size, 1.0 / SR)
+    assert spec[(f > 400) & (f < 2500)].sum() / spec.sum() > 0.85
+    a, b = np.random.default_rng(2), np.random.default_rng(2)      # on or off, the same draws
+    A._background_beds(conf, a, 9, 2 * SR, SR)
+    A._background_beds(A.synthetic_audio_config({"background_broadband_probability": 1e-12}), b, 9, 2 * SR, SR)
+    assert a.random() == b.random()
+    with pytest.raises(UserInputError, match="background_broadband_band_hz"):
+        A.synthetic_audio_config({"background_broadband_band_hz": [6000.0, 100.0]})
+
+
 def _pa(level_db: float) -> float:
     from simulator.physics.acoustics import db_spl_to_pa
 
