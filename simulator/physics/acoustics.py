@@ -911,6 +911,24 @@ def wind_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: 
     return _scale_to(base * gust, level_db)
 
 
+def drifting_broadband_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float,
+                           band_hz: tuple[float, float], tilt_db_per_octave: float) -> np.ndarray:
+    """A flat, line-free broadband bed (distant road traffic, wind in foliage): noise over ``band_hz`` (the
+    top clamped to 0.45 fs) with ``tilt_db_per_octave``, under a slow 3 dB level drift (~0.2 Hz)."""
+    base = _shaped_noise(rng, n, sample_rate_hz, band_hz[0], min(band_hz[1], 0.45 * sample_rate_hz), tilt_db_per_octave)
+    drift = 10 ** (3.0 * _smooth_random(rng, n, sample_rate_hz, 0.2) / 20)
+    return _scale_to(base * drift, level_db)
+
+
+def calls_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float,
+              start_hz: tuple[float, float]) -> np.ndarray:
+    """High-frequency calls (insects, small birds): Poisson chirps at 6 per second, 0.05-0.4 s long, starting
+    in ``start_hz`` (the top clamped to 0.4 fs), at ``level_db`` dB SPL; zeros when no call falls in the clip."""
+    calls = _chirp_events(rng, n, sample_rate_hz, 6.0, (start_hz[0], min(start_hz[1], 0.4 * sample_rate_hz)),
+                          (0.05, 0.4))
+    return _scale_to(calls, level_db) if np.any(calls) else calls
+
+
 def traffic_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
     """Road traffic at 50-500 m: tyre/road and engine noise 40 Hz-2.5 kHz (the EN 1793-3 normalised
     traffic spectrum peaks near 1 kHz A-weighted, i.e. roughly flat unweighted up to ~1 kHz), with
@@ -983,6 +1001,10 @@ def aircraft_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_
 # sim2real audio clips draw it through MachineryDistribution (docs/SIM2REAL_AUDIO.md, sixth pass).
 MACHINERY_SOURCE_INDEX = AMBIENT_SOURCE_INDEX + 7   # rng index of the machinery bed (after the other beds)
 MAX_MACHINERY_HARMONICS = 8
+# the sim2real audio clips' own beds (harness/experiments/sim2real/audio.py), after the machinery bed
+MIC_WIND_SOURCE_INDEX = AMBIENT_SOURCE_INDEX + 8    # flow noise on the microphone (seventh pass)
+BROADBAND_SOURCE_INDEX = AMBIENT_SOURCE_INDEX + 9   # flat, line-free broadband background bed (ninth pass)
+CALLS_SOURCE_INDEX = AMBIENT_SOURCE_INDEX + 10      # high-frequency calls (insects, small birds; ninth pass)
 
 
 class Machinery(BaseModel):

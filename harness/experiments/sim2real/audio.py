@@ -358,7 +358,7 @@ def _config_model():
         background_broadband_probability: float = Field(
             default=0.0, ge=0.0, le=1.0,
             description="BACKGROUND clips only: the share carrying a flat, line-free broadband bed (distant road "
-                        "traffic, wind in foliage; acoustics._shaped_noise with a slow drift); 0: off, nothing drawn "
+                        "traffic, wind in foliage; acoustics.drifting_broadband_bed); 0: off, nothing drawn "
                         "(ninth pass, docs/SIM2REAL_AUDIO.md)")
         background_broadband_db: Span = Field(default=(30.0, 44.0), description="its level (dB SPL)")
         background_broadband_band_hz: Span = Field(default=(100.0, 6000.0), description="its band (Hz)")
@@ -571,7 +571,7 @@ def _mic_wind(cfg, cls: str, rng: np.random.Generator, mix_pa: np.ndarray, clip_
     edge ``cfg.mic_wind_high_hz``, tilt ``cfg.mic_wind_tilt_db``) at the RMS level of ``mix_pa`` (dB SPL) plus
     a level drawn from ``cfg.mic_wind_db``, gust depth from ``cfg.mic_wind_gust_depth``. Always three draws
     from ``rng`` (on/off, level, gust depth); the noise comes from the clip's acoustics stream
-    ``_MIC_WIND_SOURCE_INDEX``."""
+    ``acoustics.MIC_WIND_SOURCE_INDEX``."""
     from simulator.physics import acoustics as ac
 
     on = bool(rng.random() < cfg.mic_wind_probability.get(cls, 0.0))
@@ -579,39 +579,33 @@ def _mic_wind(cfg, cls: str, rng: np.random.Generator, mix_pa: np.ndarray, clip_
     if not on:
         return np.zeros(n)
     mix_db = float(ac.pa_to_db_spl(float(np.sqrt(np.mean(np.asarray(mix_pa, dtype=np.float64) ** 2)))))
-    return ac.wind_bed(rng_for(clip_seed, "acoustics", _MIC_WIND_SOURCE_INDEX), n, sample_rate_hz, mix_db + offset_db,
+    return ac.wind_bed(rng_for(clip_seed, "acoustics", ac.MIC_WIND_SOURCE_INDEX), n, sample_rate_hz, mix_db + offset_db,
                        gust, high_hz=cfg.mic_wind_high_hz, tilt_db_per_octave=cfg.mic_wind_tilt_db)
 
 
 def _background_beds(cfg, rng: np.random.Generator, clip_seed: int, n: int, sample_rate_hz: float) -> np.ndarray:
     """The BACKGROUND-only beds of one clip (Pa; zeros when both are off or not drawn): a flat broadband bed
-    with ``cfg.background_broadband_probability`` (band, tilt and level drawn from their spans, a slow 3 dB
-    drift) and high-frequency calls with ``cfg.background_insect_probability``. A bed whose probability is 0
-    draws nothing; otherwise always on/off, level and (broadband) band and tilt, so the draws do not depend on
-    the outcome. Noise from the clip's acoustics streams ``_BROADBAND_SOURCE_INDEX`` / ``_INSECT_SOURCE_INDEX``."""
+    with ``cfg.background_broadband_probability`` (level and tilt drawn from their spans over the configured
+    band; acoustics.drifting_broadband_bed) and high-frequency calls with ``cfg.background_insect_probability``
+    (acoustics.calls_bed). A bed whose probability is 0 draws nothing; otherwise always on/off, level and
+    (broadband) tilt, so the draws do not depend on the outcome. Noise from the clip's acoustics streams
+    ``acoustics.BROADBAND_SOURCE_INDEX`` / ``acoustics.CALLS_SOURCE_INDEX``."""
     from simulator.physics import acoustics as ac
 
     out = np.zeros(n)
     if cfg.background_broadband_probability > 0:
         on = bool(rng.random() < cfg.background_broadband_probability)
         level = uniform(rng, cfg.background_broadband_db)
-        lo_hz, hi_hz = cfg.background_broadband_band_hz
         tilt = uniform(rng, cfg.background_broadband_tilt_db)
         if on:
-            src = rng_for(clip_seed, "acoustics", _BROADBAND_SOURCE_INDEX)
-            base = ac._shaped_noise(src, n, sample_rate_hz, lo_hz, min(hi_hz, 0.45 * sample_rate_hz), tilt)
-            drift = 10 ** (3.0 * ac._smooth_random(src, n, sample_rate_hz, 0.2) / 20)
-            out = out + ac._scale_to(base * drift, level)
+            out = out + ac.drifting_broadband_bed(rng_for(clip_seed, "acoustics", ac.BROADBAND_SOURCE_INDEX), n,
+                                                  sample_rate_hz, level, cfg.background_broadband_band_hz, tilt)
     if cfg.background_insect_probability > 0:
         on = bool(rng.random() < cfg.background_insect_probability)
         level = uniform(rng, cfg.background_insect_db)
         if on:
-            src = rng_for(clip_seed, "acoustics", _INSECT_SOURCE_INDEX)
-            lo_hz, hi_hz = cfg.background_insect_band_hz
-            calls = ac._chirp_events(src, n, sample_rate_hz, 6.0, (lo_hz, min(hi_hz, 0.4 * sample_rate_hz)),
-                                     (0.05, 0.4))
-            if np.any(calls):
-                out = out + ac._scale_to(calls, level)
+            out = out + ac.calls_bed(rng_for(clip_seed, "acoustics", ac.CALLS_SOURCE_INDEX), n, sample_rate_hz,
+                                     level, cfg.background_insect_band_hz)
     return out
 
 
@@ -677,9 +671,6 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
 
 
 _SYNTH_TAG = 24          # "generation" sub-stream of the sim2real audio clips (issue 24)
-_MIC_WIND_SOURCE_INDEX = 1008     # acoustics stream of the clips' flow noise (after the beds 1000-1007)
-_BROADBAND_SOURCE_INDEX = 1009   # acoustics stream of the BACKGROUND clips' flat broadband bed (ninth pass)
-_INSECT_SOURCE_INDEX = 1010      # acoustics stream of the BACKGROUND clips' high-frequency calls (ninth pass)
 
 
 # --------------------------------------------------------------------------------------------

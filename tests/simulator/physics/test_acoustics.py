@@ -604,3 +604,34 @@ def test_helicopter_band_edge_above_16_khz_follows_the_low_pass_gain():
     assert rel_db(wide) - rel_db(default) == pytest.approx(expected, abs=0.5)
     clamped = heli({"band_high_hz": (30000.0, 30000.0)})
     assert clamped.tobytes() == heli({"band_high_hz": (0.45 * FS, 0.45 * FS)}).tobytes()
+
+
+def test_sim2real_bed_streams_follow_the_ambient_beds():
+    """The sim2real clips' own bed streams sit after the ambient beds and the machinery bed, one index each."""
+    indices = [ac.MACHINERY_SOURCE_INDEX, ac.MIC_WIND_SOURCE_INDEX, ac.BROADBAND_SOURCE_INDEX, ac.CALLS_SOURCE_INDEX]
+    assert indices == list(range(ac.AMBIENT_SOURCE_INDEX + 7, ac.AMBIENT_SOURCE_INDEX + 11))
+
+
+def test_drifting_broadband_bed_level_band_and_flatness():
+    """At its level (RMS), little beyond its (2nd-order) band edges, and flat (0 dB/octave): equal power per Hz in
+    two octaves inside the band."""
+    n = 4 * FS
+    bed = ac.drifting_broadband_bed(rng_for(2, "acoustics", 0), n, FS, 40.0, (200.0, 4000.0), 0.0)
+    assert float(ac.pa_to_db_spl(np.sqrt(np.mean(bed ** 2)))) == pytest.approx(40.0, abs=0.01)
+    spec = np.abs(np.fft.rfft(bed)) ** 2
+    f = np.fft.rfftfreq(n, 1.0 / FS)
+    inside = spec[(f >= 200.0) & (f <= 4000.0)].sum()
+    assert spec[(f < 50.0) | (f > 16000.0)].sum() < 0.01 * inside     # two octaves beyond each edge
+    per_hz = lambda lo: spec[(f >= lo) & (f < 2 * lo)].sum() / lo   # noqa: E731
+    assert 10 * np.log10(per_hz(400.0) / per_hz(1600.0)) == pytest.approx(0.0, abs=1.5)
+
+
+def test_calls_bed_level_and_band():
+    """Calls at their level (RMS), their energy above half the start band's lower edge."""
+    n = 4 * FS
+    calls = ac.calls_bed(rng_for(3, "acoustics", 0), n, FS, 30.0, (4000.0, 10000.0))
+    assert np.any(calls)
+    assert float(ac.pa_to_db_spl(np.sqrt(np.mean(calls ** 2)))) == pytest.approx(30.0, abs=0.01)
+    spec = np.abs(np.fft.rfft(calls)) ** 2
+    f = np.fft.rfftfreq(n, 1.0 / FS)
+    assert spec[f < 2000.0].sum() < 0.05 * spec.sum()
