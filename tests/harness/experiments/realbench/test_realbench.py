@@ -232,7 +232,7 @@ def test_evidential_crop_model_learns_and_reports_vacuity():
             assert s.vacuity is None
 
 
-def test_results_do_not_depend_on_the_order_forked_jobs_finish_in(quick_run, tmp_path, monkeypatch):
+def test_results_do_not_depend_on_the_order_forked_jobs_finish_in(quick_run, tmp_path, reverse_forked_map):
     """``forked_map`` yields in completion order (timing), and a worker runs its jobs one after the
     other: the synthetic samples must still reach the models in call order, and a model's initial
     weights must not come from the global RNG state the previous job left. The quick run redone
@@ -240,17 +240,10 @@ def test_results_do_not_depend_on_the_order_forked_jobs_finish_in(quick_run, tmp
     its results in reverse order gives the same realbench.json (timings aside)."""
     import torch
 
-    from harness.experiments import pipeline
     from harness.experiments.realbench.harness import run_realbench
 
     out, proc = quick_run
     assert proc.returncode == 0, proc.stderr[-3000:]
-    original = pipeline.forked_map
-
-    def reverse_order_map(fn, calls, workers, label=None, context=None):
-        return reversed(list(original(fn, calls, 1, None, context=context)))
-
-    monkeypatch.setattr(pipeline, "forked_map", reverse_order_map)
     threads = torch.get_num_threads()
     try:
         with torch.random.fork_rng(devices=[]):

@@ -158,7 +158,7 @@ def test_every_condition_gets_the_same_number_of_optimiser_steps(n_crops, monkey
     assert len(calls) == 7
 
 
-def test_outputs_do_not_depend_on_the_order_forked_jobs_finish_in(quick_run, tmp_path, monkeypatch):
+def test_outputs_do_not_depend_on_the_order_forked_jobs_finish_in(quick_run, tmp_path, monkeypatch, reverse_forked_map):
     """``forked_map`` yields in completion order, which depends on timing (how long the other
     sensor's jobs take, the machine's load): the run must put the results back in call order. The
     quick run's folder rerun in-process (real and synthetic caches reused) with every forked map
@@ -169,7 +169,6 @@ def test_outputs_do_not_depend_on_the_order_forked_jobs_finish_in(quick_run, tmp
 
     import torch
 
-    from harness.experiments import pipeline
     from harness.experiments.sim2real import harness
 
     real, out, proc = quick_run
@@ -179,12 +178,6 @@ def test_outputs_do_not_depend_on_the_order_forked_jobs_finish_in(quick_run, tmp
     for stale in ("sim2real.json", "sim2real.html", "sheets", "detector"):
         path = rerun / stale
         shutil.rmtree(path) if path.is_dir() else path.unlink()
-    original = pipeline.forked_map
-
-    def reverse_order_map(fn, calls, workers, label=None, context=None):
-        return reversed(list(original(fn, calls, 1, None, context=context)))
-
-    monkeypatch.setattr(pipeline, "forked_map", reverse_order_map)
     monkeypatch.setattr(harness, "_audio_track", lambda *a, **k: {})      # no forked jobs, not under test
     threads = torch.get_num_threads()
     try:
