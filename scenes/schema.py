@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-from typing import Annotated, Final, Literal, Union
+from typing import Annotated, ClassVar, Final, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
 
@@ -27,6 +27,17 @@ RGB = tuple[
 class _Model(BaseModel):
     # allow_inf_nan=False: NaN/inf in any float field is refused at validation (not in the renderer)
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+def omit_when_unset(data: object, names: tuple[str, ...]) -> object:
+    """A model dump without the named keys whose value is None: fields added after a file format froze
+    stay out of the dump while unset, so older files keep their bytes and every hash taken of them (the
+    one mechanism behind each model's ``_OMIT_WHEN_UNSET``)."""
+    if isinstance(data, dict):
+        for name in names:
+            if name in data and data[name] is None:
+                del data[name]
+    return data
 
 
 #: a name used as one path component (scene names become output folder names)
@@ -297,14 +308,12 @@ class ThermalCamera(CameraIntrinsics):
                                          description="plateau: the frame's mean output pinned at this fraction of "
                                                      "the range (FLIR ITT mean / brightness; None = off)")
 
+    #: fields added after the scenario format froze, left out of scenario.yaml while unset
+    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("agc_mean_level",)
+
     @model_serializer(mode="wrap")
     def _dump(self, handler):
-        """``agc_mean_level`` (added after the scenario format froze) is left out while unset, so a
-        scenario without it keeps its scenario.yaml bytes and every dataset hash."""
-        data = handler(self)
-        if isinstance(data, dict) and data.get("agc_mean_level", 0) is None:
-            del data["agc_mean_level"]
-        return data
+        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
 
     @model_validator(mode="after")
     def _counts_cover_scene(self) -> "ThermalCamera":

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
@@ -18,7 +18,19 @@ from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_valid
 from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M
 from scenes.loader import GENERATION_DIR
 from scenes.sampling import Span, at, direction, pick, pick_at, target_size
-from scenes.schema import Flyby, Hover, Orbit, Scenario, Target, Terrain, Waypoints
+from scenes.schema import (
+    Flyby,
+    Hover,
+    Orbit,
+    Recording,
+    RgbCamera,
+    Scenario,
+    Target,
+    Terrain,
+    ThermalCamera,
+    Waypoints,
+    omit_when_unset,
+)
 from simulator.seeding import rng_for
 
 SPLITS = ("train", "val", "test")
@@ -87,25 +99,43 @@ class DistanceBin(_Model):
     range_m: Range
 
 
-#: Randomisation fields dumped only when set (see Randomisation._dump)
-_OMIT_WHEN_UNSET = ("multirotor_frame_warming_k", "sensor")
-
-#: randomise.sensor fields: (camera_rig entry, its field, lowest, highest, lowest excluded); the bounds are
-#: the camera models' own (scenes.schema.ThermalCamera, RgbCamera, Recording; read noise: 1000 e, a sanity
-#: cap). The draws follow this order: append new fields at the end, never reorder (it would change datasets)
-SENSOR_FIELDS: dict[str, tuple[str, str, float, float, bool]] = {
-    "thermal_blur_sigma_px": ("thermal", "blur_sigma_px", 0.0, 10.0, False),
-    "thermal_netd_k": ("thermal", "netd_k", 0.0, 1.0, True),
-    "thermal_agc_plateau_fraction": ("thermal", "agc_plateau_fraction", 0.0, 1.0, True),
-    "thermal_agc_linear_fraction": ("thermal", "agc_linear_fraction", 0.0, 1.0, False),
-    "thermal_agc_gamma": ("thermal", "agc_gamma", 0.25, 4.0, False),
-    "thermal_agc_base_gain": ("thermal", "agc_base_gain", 0.0, 1.0, False),
-    "rgb_blur_sigma_px": ("rgb", "blur_sigma_px", 0.0, 10.0, False),
-    "rgb_read_noise_e": ("rgb", "read_noise_e", 0.0, 1000.0, False),
-    "rgb_ae_key": ("rgb", "ae_key", 0.0, 1.0, True),
-    "recording_crf": ("recording", "crf", 0.0, 51.0, False),
-    "thermal_agc_min_span_k": ("thermal", "agc_min_span_k", 0.0, 200.0, True),
+#: randomise.sensor fields: the camera_rig entry and the field each one replaces; the bounds are the camera
+#: models' own (read off their pydantic constraints by ``sensor_field_bounds``). The draws follow this
+#: order: append new fields at the end, never reorder (it would change datasets)
+SENSOR_FIELDS: dict[str, tuple[str, str]] = {
+    "thermal_blur_sigma_px": ("thermal", "blur_sigma_px"),
+    "thermal_netd_k": ("thermal", "netd_k"),
+    "thermal_agc_plateau_fraction": ("thermal", "agc_plateau_fraction"),
+    "thermal_agc_linear_fraction": ("thermal", "agc_linear_fraction"),
+    "thermal_agc_gamma": ("thermal", "agc_gamma"),
+    "thermal_agc_base_gain": ("thermal", "agc_base_gain"),
+    "rgb_blur_sigma_px": ("rgb", "blur_sigma_px"),
+    "rgb_read_noise_e": ("rgb", "read_noise_e"),
+    "rgb_ae_key": ("rgb", "ae_key"),
+    "recording_crf": ("recording", "crf"),
+    "thermal_agc_min_span_k": ("thermal", "agc_min_span_k"),
 }
+_CAMERA_ENTRY_MODELS: dict[str, type[BaseModel]] = {"thermal": ThermalCamera, "rgb": RgbCamera,
+                                                    "recording": Recording}
+#: upper bounds where the camera field has none (a sanity cap, electrons)
+_SENSOR_FIELD_CAPS = {"rgb_read_noise_e": 1000.0}
+
+
+def sensor_field_bounds(name: str) -> tuple[float, bool, float, bool]:
+    """(lowest, lowest excluded, highest, highest excluded) of ``randomise.sensor.<name>``: the camera
+    field's own ge/gt/le/lt constraints, capped by ``_SENSOR_FIELD_CAPS``."""
+    entry, field = SENSOR_FIELDS[name]
+    lo, lo_open, hi, hi_open = -math.inf, False, _SENSOR_FIELD_CAPS.get(name, math.inf), False
+    for c in _CAMERA_ENTRY_MODELS[entry].model_fields[field].metadata:
+        if getattr(c, "ge", None) is not None:
+            lo, lo_open = float(c.ge), False
+        elif getattr(c, "gt", None) is not None:
+            lo, lo_open = float(c.gt), True
+        elif getattr(c, "le", None) is not None and float(c.le) <= hi:
+            hi, hi_open = float(c.le), False
+        elif getattr(c, "lt", None) is not None and float(c.lt) <= hi:
+            hi, hi_open = float(c.lt), True
+    return lo, lo_open, hi, hi_open
 
 
 class SensorRandomisation(_Model):
@@ -129,13 +159,14 @@ class SensorRandomisation(_Model):
 
     @model_validator(mode="after")
     def _bounds(self) -> "SensorRandomisation":
-        for name, (_, _, lo, hi, open_lo) in SENSOR_FIELDS.items():
+        for name in SENSOR_FIELDS:
             value = getattr(self, name)
             if value is None:
                 continue
-            if value.min < lo or (open_lo and value.min <= lo) or value.max > hi:
-                side = "(" if open_lo else "["
-                raise ValueError(f"sensor.{name} must lie in {side}{lo:g}, {hi:g}], got [{value.min}, {value.max}]")
+            lo, lo_open, hi, hi_open = sensor_field_bounds(name)
+            if value.min < lo or (lo_open and value.min <= lo) or value.max > hi or (hi_open and value.max >= hi):
+                interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+                raise ValueError(f"sensor.{name} must lie in {interval}, got [{value.min}, {value.max}]")
         return self
 
 
@@ -202,15 +233,13 @@ class Randomisation(_Model):
     sensor: SensorRandomisation | None = Field(default=None, description=(
         "per-sequence camera-model settings (blur, NETD, gain stage, exposure, H.264 CRF); null: the scenario's"))
 
+    #: fields added after the dataset format froze, left out of the dump while unset: a config without
+    #: them keeps its manifest bytes and ``dataset_id`` (an older dataset folder resumes)
+    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("multirotor_frame_warming_k", "sensor")
+
     @model_serializer(mode="wrap")
     def _dump(self, handler):
-        """Fields added after a dataset format froze are left out of the dump while unset, so a config
-        without them keeps its manifest bytes and ``dataset_id`` (an older dataset folder resumes)."""
-        data = handler(self)
-        for name in _OMIT_WHEN_UNSET:
-            if isinstance(data, dict) and data.get(name, 0) is None:
-                del data[name]
-        return data
+        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
 
     @model_validator(mode="after")
     def _checks(self) -> "Randomisation":
@@ -611,7 +640,7 @@ def _draw_sensor(sensor: SensorRandomisation, rig: dict, rng: np.random.Generato
     from scenes.errors import UserInputError
 
     draws = rng.random(len(SENSOR_FIELDS))
-    for draw, (name, (entry, field, _, _, _)) in zip(draws, SENSOR_FIELDS.items()):
+    for draw, (name, (entry, field)) in zip(draws, SENSOR_FIELDS.items()):
         value = getattr(sensor, name)
         if value is None:
             continue

@@ -202,3 +202,32 @@ def test_a_crf_draw_replaces_the_recordings_rate_control():
     rig = {"recording": {"codec": "h264", "crf": None, "bit_rate_bps": 40000}}
     _draw_sensor(SensorRandomisation(recording_crf=[24, 32]), rig, np.random.default_rng(0))
     assert 24 <= rig["recording"]["crf"] <= 32 and rig["recording"]["bit_rate_bps"] is None
+
+
+def test_sensor_bounds_are_the_camera_fields_own_so_every_value_a_camera_refuses_is_refused_here():
+    """Each randomise.sensor field accepts exactly what its camera field accepts (plus the read-noise cap):
+    a range touching an excluded end or crossing a bound is refused, naming the field; the bounds of a few
+    fields are checked by hand against scenes.schema."""
+    from simulator.dataset.config import SENSOR_FIELDS, sensor_field_bounds
+
+    assert sensor_field_bounds("thermal_netd_k") == (0.0, True, 1.0, False)
+    assert sensor_field_bounds("thermal_agc_gamma") == (0.25, False, 4.0, False)
+    assert sensor_field_bounds("recording_crf") == (0.0, False, 51.0, False)
+    assert sensor_field_bounds("rgb_read_noise_e") == (0.0, False, 1000.0, False)   # the cap: the camera has none
+    for name in SENSOR_FIELDS:
+        lo, lo_open, hi, hi_open = sensor_field_bounds(name)
+        inner_lo = lo + 1e-3 if lo_open else lo
+        inner_hi = hi - 1e-3 if hi_open else hi
+        _cfg(sensor={name: [inner_lo, inner_hi]})                                   # the whole legal span
+        with pytest.raises(UserInputError, match=f"sensor.{name}"):
+            _cfg(sensor={name: [inner_lo, hi + 1.0]})
+        with pytest.raises(UserInputError, match=f"sensor.{name}"):
+            _cfg(sensor={name: [lo if lo_open else lo - 1.0, inner_hi]})
+
+
+def test_omit_when_unset_drops_only_the_named_keys_that_are_none():
+    from scenes.schema import omit_when_unset
+
+    data = {"a": None, "b": None, "c": 1}
+    assert omit_when_unset(data, ("a", "c", "missing")) == {"b": None, "c": 1}
+    assert omit_when_unset([1, None], ("a",)) == [1, None]                         # not a dict: untouched
