@@ -330,18 +330,29 @@ def descendants(pid: int, table: dict[int, tuple[int, str]] | None = None) -> di
     return out
 
 
-def reap_when_gone(driver_pid: int, interval_s: float = 0.25) -> None:
+def reap_when_gone(driver_pid: int, interval_s: float = 0.25, ready=None) -> None:
     """Run in a small watcher process: snapshot the driver's descendants (those started after this
     watcher) every ``interval_s``; when the driver dies, SIGKILL every one of the last snapshot still
     running under the same start time. Ray's own processes (GCS, raylet, agents, workers) fate-share
-    with a driver that started them, but its agents take up to a minute to notice."""
+    with a driver that started them, but its agents take up to a minute to notice.
+
+    A snapshot counts only if the driver still runs after it was taken: a dead driver's children are
+    handed to init at once, so a snapshot taken while it dies misses them (under load this left Ray's
+    agents running). ``ready`` (a writable file) gets one line once the baseline is taken, so the
+    caller can start Ray only after it."""
     import signal
 
     me = os.getpid()
     before = set(descendants(driver_pid))
+    if ready is not None:
+        ready.write("ready\n")
+        ready.flush()
     tree: dict[int, str] = {}
-    while pid_running(driver_pid):
-        tree = {p: t for p, t in descendants(driver_pid).items() if p != me and p not in before}
+    while True:
+        snapshot = {p: t for p, t in descendants(driver_pid).items() if p != me and p not in before}
+        if not pid_running(driver_pid):
+            break
+        tree = snapshot
         time.sleep(interval_s)
     table = _process_table()
     for pid, started in tree.items():
@@ -359,7 +370,11 @@ def start_reaper() -> Any:
 
     if not os.path.isdir("/proc"):
         return None
-    code = f"from simulator.jobs import reap_when_gone; reap_when_gone({os.getpid()})"
+    code = f"import sys; from simulator.jobs import reap_when_gone; reap_when_gone({os.getpid()}, ready=sys.stdout)"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-    return subprocess.Popen([sys.executable, "-c", code], env=env, stdin=subprocess.DEVNULL,
-                            stdout=subprocess.DEVNULL, start_new_session=True)
+    reaper = subprocess.Popen([sys.executable, "-c", code], env=env, stdin=subprocess.DEVNULL,
+                              stdout=subprocess.PIPE, start_new_session=True)
+    if reaper.stdout is not None:
+        reaper.stdout.readline()  # its baseline is taken: every process started from here on is new to it
+        reaper.stdout.close()
+    return reaper

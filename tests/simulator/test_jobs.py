@@ -2,6 +2,7 @@
 slot, die-with-driver, and the same results in-process and on a pool."""
 from __future__ import annotations
 
+import io
 import os
 import signal
 import subprocess
@@ -11,6 +12,7 @@ import time
 
 import pytest
 
+from simulator import jobs
 from simulator.jobs import JobError, iter_jobs, job_context, run_jobs, threads_per_worker
 
 
@@ -152,3 +154,29 @@ def test_killing_the_driver_kills_its_workers(tmp_path):
     finally:
         if driver.poll() is None:
             driver.kill()
+
+
+def test_the_reaper_keeps_the_last_snapshot_taken_while_the_driver_ran(monkeypatch):
+    """A dead driver's children are handed to init at once, so a snapshot taken while it dies is empty:
+    the reaper must kill the one before it (this race left Ray's agents running under load)."""
+    state = {"alive": True, "calls": 0}
+    tree = {10: "t10", 11: "t11"}
+
+    def fake_descendants(pid, table=None):
+        state["calls"] += 1
+        if state["calls"] == 1:      # the baseline, before Ray started
+            return {}
+        if state["calls"] == 3:      # the driver dies while this snapshot is taken
+            state["alive"] = False
+            return {}
+        return dict(tree)
+
+    killed = []
+    monkeypatch.setattr(jobs, "descendants", fake_descendants)
+    monkeypatch.setattr(jobs, "pid_running", lambda pid: state["alive"])
+    monkeypatch.setattr(jobs, "_process_table", lambda: {p: (1, t) for p, t in tree.items()})
+    monkeypatch.setattr(jobs.os, "kill", lambda pid, sig: killed.append(pid))
+    ready = io.StringIO()
+    jobs.reap_when_gone(12345, interval_s=0.0, ready=ready)
+    assert sorted(killed) == [10, 11]
+    assert ready.getvalue() == "ready\n"
