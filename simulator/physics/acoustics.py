@@ -1015,9 +1015,10 @@ def peaking_filter(x: np.ndarray, sample_rate_hz: float, centre_hz: float, gain_
 
     iirpeak's band-pass is (1 - A(z)) / 2 with A an all-pass, so the sum is the Regalia-Mitra peaking
     equaliser: exactly ``gain_db`` at the centre (the band-pass there is 1 at zero phase), 0 dB at DC
-    and Nyquist, never under 0 dB for a positive gain (no dips beside the peak). Causal (``lfilter``), not zero-phase: a resonance of a housing
-    or a mount is causal and minimum-phase, and ``filtfilt`` would square the band-pass (a narrower
-    peak than ``q`` says) at twice the cost. Pure: float64 out, ``x`` untouched."""
+    and Nyquist, never under 0 dB for a positive gain (no dips beside the peak). Causal (``lfilter``),
+    not zero-phase: a resonance of a housing or a mount is causal and minimum-phase, and ``filtfilt``
+    would square the band-pass (a narrower peak than ``q`` says) at twice the cost. Pure: float64 out,
+    ``x`` untouched."""
     from scipy.signal import iirpeak, lfilter
 
     x = np.asarray(x, dtype=np.float64)
