@@ -101,7 +101,14 @@ def test_synthetic_clips_are_deterministic_per_seed_and_labelled():
                                         ({"rotor_noise": {"colour": [1.0, 2.0]}}, "rotor_noise.colour"),
                                         ({"helicopter": {"tip_noise_db": [-6.0, -16.0]}}, "helicopter.tip_noise_db"),
                                         ({"drone_bpf_hz": [190.0, 150.0]}, "drone_bpf_hz"),
-                                        ({"drone_bpf_hz": [0.0, 150.0]}, "drone_bpf_hz")])
+                                        ({"drone_bpf_hz": [0.0, 150.0]}, "drone_bpf_hz"),
+                                        ({"resonance_count": {"PLANE": [0, 2]}}, "resonance_count"),
+                                        ({"resonance_count": {"DRONE": [2, 0]}}, "resonance_count.DRONE"),
+                                        ({"resonance_count": {"DRONE": [-1, 2]}}, "resonance_count.DRONE"),
+                                        ({"resonance_hz": [8000.0, 150.0]}, "resonance_hz"),
+                                        ({"resonance_hz": [0.0, 150.0]}, "resonance_hz"),
+                                        ({"resonance_db": [14.0, 6.0]}, "resonance_db"),
+                                        ({"resonance_q": [5.0, 1.5]}, "resonance_q")])
 def test_bad_config_names_the_field(bad, field):
     with pytest.raises(UserInputError, match=field.replace("[", r"\[").replace("]", r"\]")):
         A.synthetic_audio_clips(bad, 0, 1)
@@ -342,6 +349,36 @@ def test_background_only_beds_reach_only_the_background_clips():
     assert a.random() == b.random()
     with pytest.raises(UserInputError, match="background_broadband_band_hz"):
         A.synthetic_audio_config({"background_broadband_band_hz": [6000.0, 100.0]})
+
+
+# sha256 of the samples of the clips below (seed 3, one per class, 2 s) on main 9ef1f81, before the
+# resonances existed: the default config must keep every class's clip byte for byte
+MAIN_2S_SHA256 = ("c8a1b39eaf7d5293b67761888bfeec7119991ba270472d283ff2b49498abca2e",
+                  "78f9ecedb9822e0dc5c91859f93e4d02f0eac32c49edb040b0d764ee02578ac9",
+                  "6fe30d997efdc94e354bbb0dcf8ac65d73891cfd3531e65271fcd3fc6d675924")
+
+
+def test_resonances_off_by_default_and_reach_only_the_listed_classes():
+    """``resonance_count`` {} (default) leaves every clip byte-identical to main's (sha256); listing a class
+    changes that class's clip only (its own acoustics stream, drawn after everything else), its RMS kept
+    before the recorder; a listed class with count 0 is unchanged."""
+    import hashlib
+
+    cfg = {"duration_s": 2.0, "drone_range_m": [[10.0, 20.0]]}
+    off = A.synthetic_audio_clips(cfg, 3, 1)
+    assert tuple(hashlib.sha256(c.samples.tobytes()).hexdigest() for c in off) == MAIN_2S_SHA256
+    spans = {"resonance_hz": [150.0, 8000.0], "resonance_db": [6.0, 14.0], "resonance_q": [1.5, 5.0]}
+    for counts, changed in (({"DRONE": [2, 2], "BACKGROUND": [1, 2]}, [True, False, True]),
+                            ({"HELICOPTER": [1, 1]}, [False, True, False]),
+                            ({"DRONE": [0, 0]}, [False, False, False])):
+        on = A.synthetic_audio_clips({**cfg, **spans, "resonance_count": counts}, 3, 1)
+        assert [x.samples.tobytes() != y.samples.tobytes() for x, y in zip(off, on)] == changed, counts
+    conf = A.synthetic_audio_config({**spans, "resonance_count": {"DRONE": [2, 2]}})
+    mix = np.random.default_rng(5).standard_normal(SR)
+    out = A._resonances(conf, "DRONE", mix, 9, SR)
+    assert np.sqrt(np.mean(out ** 2)) == pytest.approx(np.sqrt(np.mean(mix ** 2)), rel=1e-12)
+    assert not np.allclose(out, mix)
+    assert A._resonances(conf, "BACKGROUND", mix, 9, SR) is mix
 
 
 def _pa(level_db: float) -> float:
