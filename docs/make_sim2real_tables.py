@@ -52,6 +52,11 @@ def visual_rows(before: dict, after: dict) -> list[str]:
             rows = [row for stats in res["statistics"].values() for row in stats.values() if row["inside"] is not None]
             ins.append(f"{sum(r['inside'] for r in rows)} of {len(rows)}")
         out.append(f"| statistics with the synthetic median inside the real IQR | {ins[0]} | {ins[1]} |")
+        cal_rows = [row for stats in a["statistics"].values() for row in stats.values()
+                    if row.get("calibration_inside") is not None]
+        if cal_rows:
+            out.append("| the same for the real calibration half's median (null reference) | - | "
+                       f"{sum(r['calibration_inside'] for r in cal_rows)} of {len(cal_rows)} |")
     return out
 
 
@@ -94,7 +99,9 @@ def audio_rows(after: dict) -> list[str]:
         f"{100 * cl[m]['b_synthetic']['helicopter_called_drone']:.0f} %" for m in ("cnn", "logreg")) + " |")
     ins = res.get("statistics_inside_real_iqr", {})
     out.append("\nSpectral statistics inside the real IQR: "
-               + ", ".join(f"{k} {v['inside']} of {v['of']}" for k, v in ins.items()))
+               + ", ".join(f"{k} {v['inside']} of {v['of']}" for k, v in ins.items())
+               + "; the real calibration half's medians (null reference): "
+               + ", ".join(f"{k} {v.get('calibration_inside', '-')} of {v['of']}" for k, v in ins.items()))
     return out
 
 

@@ -93,12 +93,20 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
         for stat, row in stats.items():
             inside = row["inside"]
             mark = "&ndash;" if inside is None else ("yes" if inside else "<b>no</b>")
+            cal_inside = row.get("calibration_inside")
+            cal_mark = "&ndash;" if cal_inside is None else ("yes" if cal_inside else "no")
             rows.append([f"{cls}", STAT_LABELS.get(stat, stat), _iqr(row["real_evaluation"]),
                          _iqr(row["real_calibration"]),
-                         _iqr(row["synthetic"]), mark])
+                         _iqr(row["synthetic"]), mark, cal_mark])
+    n_syn = sum(bool(r[5] == "yes") for r in rows)
+    n_cal = sum(bool(r[6] == "yes") for r in rows)
+    n_all = sum(r[5] != "&ndash;" for r in rows)
     parts.append("<details open><summary>Per-class statistics: median [IQR]</summary>" +
                  _table(["class", "statistic", "real, evaluation half", "real, calibration half", "synthetic",
-                         "synthetic median inside real IQR"], rows) + "</details>")
+                         "synthetic median inside real IQR", "calibration median inside (null reference)"], rows)
+                 + f"<p class='note'>Synthetic medians inside the real evaluation IQR: {n_syn} of {n_all}; the real "
+                 f"calibration half's medians (a second set of real clips, the criterion's null reference): "
+                 f"{n_cal} of {n_all}.</p></details>")
     files = res.get("sheets", {})
     for kind, caption in (("crops", "target crops"), ("backgrounds", "background patches"), ("frames", "whole frames")):
         if kind in files:
@@ -143,6 +151,9 @@ def _audio(run_dir: Path, res: dict[str, Any]) -> str:
         parts.append("<p class='note'>Spectral statistics with the synthetic median inside the real evaluation half's "
                      "IQR: "
                      + ", ".join(f"{k} {v['inside']} of {v['of']}" for k, v in inside.items())
+                     + "; the real calibration half's medians on the same test (a second set of real recordings, "
+                     "the criterion's null reference): "
+                     + ", ".join(f"{k} {v.get('calibration_inside', '-')} of {v['of']}" for k, v in inside.items())
                      + " (all values in sim2real.json).</p>")
     fig = res.get("figure")
     if fig:

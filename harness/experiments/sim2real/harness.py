@@ -104,7 +104,9 @@ def _stat_summary(values: Sequence[float | None]) -> dict[str, float] | None:
 
 def statistics_table(samples: list[FrameSample], clips: list[ClipSummary], sensor: str, classes: list[str]) -> dict:
     """Per class and statistic: real evaluation half, real calibration half and synthetic (median,
-    IQR); ``inside`` says whether the synthetic median lies in the real evaluation half's IQR."""
+    IQR); ``inside`` says whether the synthetic median lies in the real evaluation half's IQR, and
+    ``calibration_inside`` the same for the real calibration half's median: what a second set of real
+    clips reaches on the same test (the criterion's null reference)."""
     table: dict[str, dict] = {}
     groups = {"real_evaluation": ("real", "evaluation"), "real_calibration": ("real", "calibration"),
               "synthetic": ("synthetic", "synthetic")}
@@ -123,6 +125,9 @@ def statistics_table(samples: list[FrameSample], clips: list[ClipSummary], senso
                 row[key] = _stat_summary(vals)
             real, syn = row["real_evaluation"], row["synthetic"]
             row["inside"] = None if not (real and syn) else bool(real["q25"] <= syn["median"] <= real["q75"])
+            cal = row["real_calibration"]
+            row["calibration_inside"] = (None if not (real and cal and syn)
+                                         else bool(real["q25"] <= cal["median"] <= real["q75"]))
             table[cls][stat] = row
     return table
 
@@ -392,6 +397,12 @@ def format_table(summary: dict[str, Any]) -> str:
                     lines.append(f"  ratio (b)/(a) {r['ratio_synthetic_over_real_auc']:.3f}; helicopter windows called "
                                  "drone by (b) "
                                  f"{100 * (r['b_synthetic'].get('helicopter_called_drone') or 0):.0f} %")
+            inside = res.get("statistics_inside_real_iqr", {})
+            if inside:
+                lines.append("audio statistics: synthetic median inside the real IQR for "
+                             f"{sum(v['inside'] for v in inside.values())} of {sum(v['of'] for v in inside.values())}"
+                             " (the real calibration half's median: "
+                             f"{sum(v.get('calibration_inside', 0) for v in inside.values())})")
             continue
         c = res["classifier"]
         lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({c['n_test_clips']} clips, "
@@ -421,5 +432,7 @@ def format_table(summary: dict[str, Any]) -> str:
         inside = [(cls, st) for cls, rows in res["statistics"].items() for st, row in rows.items()
                   if row["inside"] is not None]
         n_in = sum(res["statistics"][cls][st]["inside"] for cls, st in inside)
-        lines.append(f"  statistics: synthetic median inside the real IQR for {n_in} of {len(inside)}")
+        n_cal = sum(bool(res["statistics"][cls][st].get("calibration_inside")) for cls, st in inside)
+        lines.append(f"  statistics: synthetic median inside the real IQR for {n_in} of {len(inside)}"
+                     f" (the real calibration half's median: {n_cal} of {len(inside)})")
     return "\n".join(lines)

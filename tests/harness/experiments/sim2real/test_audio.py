@@ -146,6 +146,14 @@ def test_quick_track_runs_under_30_s_and_separates_easy_classes(tmp_path):
     drone = summary["statistics"]["DRONE"]["evaluation"]
     assert drone["f0_hz"]["real_q25"] >= 140 and drone["pitched"]["real_median"] == 1.0
     assert summary["statistics"]["BACKGROUND"]["evaluation"]["pitched"]["real_median"] == 0.0
+    # the null reference: the real calibration half's medians against the evaluation half's IQRs
+    for cls in A.CLASSES:
+        pools = {h: A._pooled(A.audio_statistics(c.samples, c.sample_rate) for c in real
+                              if c.cls == cls and c.half == h) for h in ("calibration", "evaluation")}
+        expected = sum(v["inside_real_iqr"] for v in A.compare_statistics(pools["evaluation"],
+                                                                          pools["calibration"]).values())
+        counts = summary["statistics_inside_real_iqr"][cls]
+        assert counts["calibration_inside"] == expected and 0 < expected <= counts["of"]
 
 
 def test_read_wav_clips_splits_odd_and_even(tmp_path):

@@ -115,8 +115,14 @@ def test_balanced_accuracy_and_statistics_table_inside_flag():
     table = statistics_table(rows, [], "ir", ["DRONE"])
     assert table["DRONE"]["contrast"]["inside"] is True
     assert table["DRONE"]["contrast"]["real_evaluation"]["q25"] == 2.0
+    assert table["DRONE"]["contrast"]["calibration_inside"] is None   # no calibration crops: no null reference
     rows[-1] = mk("synthetic", "synthetic", 50.0)
     assert statistics_table(rows, [], "ir", ["DRONE"])["DRONE"]["contrast"]["inside"] is False
+    # the null reference: the real calibration half's median against the same evaluation IQR [2, 4]
+    cal = [mk("real", "calibration", v) for v in (3.0, 9.0, 9.5)]      # median 9: outside
+    assert statistics_table(rows + cal, [], "ir", ["DRONE"])["DRONE"]["contrast"]["calibration_inside"] is False
+    cal = [mk("real", "calibration", v) for v in (1.0, 2.5, 9.5)]      # median 2.5: inside
+    assert statistics_table(rows + cal, [], "ir", ["DRONE"])["DRONE"]["contrast"]["calibration_inside"] is True
 
 
 def test_per_class_recall_and_confusion_known_answer():
