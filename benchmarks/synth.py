@@ -24,7 +24,9 @@ import numpy as np  # noqa: E402
 
 from scenes.loader import load_scenario  # noqa: E402
 from simulator.dataset import trident as tr  # noqa: E402
-from simulator.physics.acoustics import AUDIO_SAMPLE_RATE_HZ, Ambience, synthesize_audio  # noqa: E402
+from simulator.physics.acoustics.ambience import Ambience  # noqa: E402
+from simulator.physics.acoustics.levels import AUDIO_SAMPLE_RATE_HZ  # noqa: E402
+from simulator.physics.acoustics.mix import synthesize_audio  # noqa: E402
 from simulator.physics.rf import spectrogram_image, synthesize_rf  # noqa: E402
 from simulator.physics.timeline import build_timeline  # noqa: E402
 

@@ -48,14 +48,9 @@ from simulator.formats.trident import (
     write_clip,
 )
 from simulator.jobs import JobError, Start, iter_jobs
-from simulator.physics.acoustics import (
-    AUDIO_SAMPLE_RATE_HZ,
-    Ambience,
-    AmbienceDistribution,
-    band_level_db,
-    draw_ambience,
-    synthesize_audio,
-)
+from simulator.physics.acoustics.ambience import Ambience, AmbienceDistribution, draw_ambience
+from simulator.physics.acoustics.levels import AUDIO_SAMPLE_RATE_HZ, band_level_db
+from simulator.physics.acoustics.mix import synthesize_audio
 from simulator.physics.rf import RFConfig, spectrogram_image, synthesize_rf
 from simulator.seeding import rng_for
 from simulator.sensors.microphone import RecorderConfig, record
@@ -136,7 +131,7 @@ class SceneDistribution(_Model):
     relative_humidity: Span = (0.25, 0.95)
     visibility_m: Span = (4000.0, 40000.0)
     ambience: AmbienceDistribution = Field(default_factory=lambda: TRIDENT_AMBIENCE, description=(
-        "ambient beds per scene (simulator.physics.acoustics.AmbienceDistribution)"))
+        "ambient beds per scene (simulator.physics.acoustics.ambience.AmbienceDistribution)"))
     max_birds: int = Field(default=2, ge=0, le=6)
     airliner_probability: float = Field(default=0.35, ge=0.0, le=1.0)
     wifi_probability: float = Field(default=0.6, ge=0.0, le=1.0)

@@ -38,7 +38,8 @@ from typing import Any, Iterable, Iterator, Literal, Protocol
 import numpy as np
 
 from simulator.formats.validation import FormatError, Skipped, SkippedRowsWarning, read_json
-from simulator.physics.acoustics import AUDIO_SAMPLE_RATE_HZ, write_wav
+from simulator.physics.acoustics.levels import AUDIO_SAMPLE_RATE_HZ
+from simulator.physics.acoustics.mix import write_wav
 from simulator.physics.rf import RFCapture, RFConfig
 
 SEGMENT_S = 0.25

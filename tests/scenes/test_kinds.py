@@ -23,7 +23,8 @@ def test_the_kind_lists_agree():
 def test_acoustics_and_the_sampler_read_the_table():
     from scenes import sampling
     from simulator.dataset import config, trident
-    from simulator.physics import acoustics, rf
+    from simulator.physics import rf
+    from simulator.physics.acoustics import sources as acoustics
 
     assert acoustics._REFERENCE_SIZE_M is DRONE_SIZE_M
     assert acoustics.DRONE_KINDS is rf.DRONE_KINDS is config.DRONE_KINDS is trident.DRONE_KINDS is DRONE_KINDS

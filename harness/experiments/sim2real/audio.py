@@ -282,7 +282,7 @@ def _config_model():
     from pydantic import BaseModel, ConfigDict, Field, model_validator
 
     from scenes.kinds import BENCHMARK_DRONE_SIZE_RANGE_M, DRONE_KINDS
-    from simulator.physics.acoustics import AmbienceDistribution, MachineryDistribution
+    from simulator.physics.acoustics.ambience import AmbienceDistribution, MachineryDistribution
     from simulator.sensors.microphone import RecorderConfig
 
     Span = tuple[float, float]
@@ -443,7 +443,7 @@ def _config_model():
             for name, (lo, hi) in spans.items():
                 if lo > hi:
                     raise ValueError(f"{name}: low {lo} exceeds high {hi}")
-            from simulator.physics.acoustics import HELICOPTER_RANGES, ROTOR_NOISE_RANGES, merged_ranges
+            from simulator.physics.acoustics.sources import HELICOPTER_RANGES, ROTOR_NOISE_RANGES, merged_ranges
 
             merged_ranges(ROTOR_NOISE_RANGES, self.rotor_noise, "rotor_noise")     # raises naming the bad key
             merged_ranges(HELICOPTER_RANGES, self.helicopter, "helicopter")
@@ -651,9 +651,9 @@ def _resonances(cfg, cls: str, mix_pa: np.ndarray, clip_seed: int, sample_rate_h
 
 def helicopter_available() -> bool:
     """True when the acoustic model has a helicopter source."""
-    from simulator.physics import acoustics
+    from simulator.physics.acoustics import sources
 
-    return hasattr(acoustics, "helicopter_signature")
+    return hasattr(sources, "helicopter_signature")
 
 
 def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | None = None, *,

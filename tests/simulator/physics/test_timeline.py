@@ -142,3 +142,16 @@ def test_retuned_rotors_take_a_per_frame_factor_on_every_rotor():
         retuned_rotors(track, 4000.0, factor[:-1])
     with pytest.raises(ValueError, match="rpm_factor"):
         retuned_rotors(track, 4000.0, -factor)
+
+
+def test_rotor_rpm_fluctuation_is_zero_sum_and_correlated():
+    from simulator.physics.timeline import RPM_FLUCTUATION_STD, rotor_rpm_fluctuation
+
+    f = rotor_rpm_fluctuation(rng_for(1, "rotor_detune", 0), 20_000, 4, 30.0)
+    assert np.allclose(f.mean(axis=1), 1.0)
+    std = float(np.std(f - 1.0))
+    assert RPM_FLUCTUATION_STD[0] * 0.8 <= std <= RPM_FLUCTUATION_STD[1] * 1.2
+    x = f[:, 0] - 1.0
+    lag1 = float(np.corrcoef(x[:-1], x[1:])[0, 1])
+    assert lag1 > 0.5                                           # a Gauss-Markov process, not white jitter
+    assert np.array_equal(rotor_rpm_fluctuation(rng_for(1, "rotor_detune", 0), 10, 1, 30.0), np.ones((10, 1)))
