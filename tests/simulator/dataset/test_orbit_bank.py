@@ -16,7 +16,7 @@ from scenes.loader import validate_mapping
 from scenes.schema import Orbit
 from simulator.dataset.config import GenerationConfig, _orbit_radius, _trajectory, randomised_scenario
 from simulator.physics.timeline import build_timeline
-from simulator.physics.trajectory import GRAVITY_MPS2, min_orbit_radius_m
+from simulator.physics.trajectory import GRAVITY_MPS2, min_orbit_radius_m, positions_m
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples" / "sim2real"
 
@@ -43,6 +43,19 @@ def test_the_table_covers_every_kind_and_turns_level_flight_no_steeper_than_the_
     assert set(MAX_BANK_DEG) == set(TARGET_KINDS)
     assert all(0.0 < b <= 60.0 for b in MAX_BANK_DEG.values())
     assert MAX_BANK_DEG["helicopter"] == MAX_BANK_DEG["airliner"] == 30.0
+
+
+def test_a_raised_orbit_starts_where_the_drawn_one_did_and_an_unraised_one_is_unchanged():
+    centre = np.array([0.0, 500.0, 100.0])
+    loose = _trajectory("orbit", centre, 40.0, 2.0, np.random.default_rng(3), 89.999)   # the old draw
+    raised = _trajectory("orbit", centre, 40.0, 2.0, np.random.default_rng(3), 30.0)
+    assert isinstance(loose, Orbit) and isinstance(raised, Orbit)
+    assert loose.center_m == (0.0, 500.0, 100.0) and raised.radius_m == 282.496 > loose.radius_m
+    assert (raised.clockwise, raised.start_angle_deg) == (loose.clockwise, loose.start_angle_deg)
+    start = [positions_m(o, np.zeros(1), np.random.default_rng(0))[0] for o in (loose, raised)]
+    assert np.allclose(start[0], start[1], atol=2e-3)
+    slow = [_trajectory("orbit", centre, 3.0, 2.0, np.random.default_rng(3), b) for b in (89.999, 35.0)]
+    assert slow[0] == slow[1]
 
 
 @settings(max_examples=60, deadline=None)
