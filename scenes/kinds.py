@@ -1,6 +1,6 @@
-"""The kinds of target, the nominal size of each drone kind and the size span a drawn target of each
-kind gets: the one table every part of the simulator reads (the scene samplers, acoustics, RF), so a
-hexacopter has one size.
+"""The kinds of target, the nominal size of each drone kind, the size span a drawn target of each
+kind gets and the steepest bank it flies a drawn turn at: the one table every part of the simulator
+reads (the scene samplers, acoustics, RF, the generator's orbits), so a hexacopter has one size.
 
 Sizes are overall span in metres. ``DRONE_SIZE_M`` is the size a sampled drone of that kind gets when
 a generation config changes its kind (before the config's ``target_size_scale``) and the reference
@@ -31,3 +31,14 @@ TARGET_SIZE_RANGE_M = {"quadcopter": (0.3, 0.6), "hexacopter": (0.6, 1.1), "fixe
 #: (docs/SIM2REAL_AUDIO.md, third pass; was 0.12-0.5 m). Hexacopters 0.5-1.1 m.
 BENCHMARK_DRONE_SIZE_RANGE_M = {**{k: TARGET_SIZE_RANGE_M[k] for k in DRONE_KINDS},
                                 "quadcopter": (0.3, 0.5), "hexacopter": (0.5, 1.1)}
+
+#: steepest bank (deg) of a drawn level turn of each kind: the generator's orbit radius is at least
+#: v^2 / (g tan(bank)) (``simulator.physics.trajectory.min_orbit_radius_m``), so the coordinated-turn
+#: bank arctan(v^2 / (g r)) the renderer poses stays physical. Helicopter and airliner 30: instrument
+#: and airline turns are standard-rate (3 deg/s) turns capped at 25-30 deg of bank (a standard-rate
+#: turn at 20-60 m/s is a 6-18 deg bank). Multirotors 35 (tilt of the thrust vector): between the
+#: autopilots' default lean limits, ArduCopter ANGLE_MAX 30 deg and PX4 MPC_TILTMAX_AIR 45 deg.
+#: Fixed wing 45: ArduPlane's default roll limit. Bird 60: birds turn steeply; 60 is the renderer's
+#: bank clip (``simulator.physics.timeline``), so a bird's drawn orbit is never clipped there.
+MAX_BANK_DEG = {"quadcopter": 35.0, "hexacopter": 35.0, "fixed_wing": 45.0, "bird": 60.0,
+                "airliner": 30.0, "helicopter": 30.0}

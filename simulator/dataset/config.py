@@ -15,7 +15,7 @@ from typing import Annotated, Any, ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
 
-from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M
+from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M, MAX_BANK_DEG
 from scenes.loader import GENERATION_DIR
 from scenes.sampling import Span, at, direction, pick, pick_at, target_size
 from scenes.schema import (
@@ -31,6 +31,7 @@ from scenes.schema import (
     Waypoints,
     omit_when_unset,
 )
+from simulator.physics.trajectory import min_orbit_radius_m
 from simulator.seeding import rng_for
 
 SPLITS = ("train", "val", "test")
@@ -403,8 +404,22 @@ def _xyz(v: np.ndarray) -> tuple[float, float, float]:
     return x, y, z
 
 
+def _orbit_radius(drawn_m: float, speed_mps: float, max_bank_deg: float) -> float:
+    """The drawn orbit radius (rounded to the millimetre), raised to the smallest radius whose
+    coordinated-turn bank stays within ``max_bank_deg`` (rounded up) where it is below it: a radius
+    that was already physical is kept as drawn, and no random number is drawn for the raise."""
+    radius = round(drawn_m, 3)  # a no-op on an already rounded draw
+    smallest = math.ceil(min_orbit_radius_m(speed_mps, max_bank_deg) * 1000.0) / 1000.0
+    return max(radius, smallest)
+
+
 def _trajectory(kind: str, centre: np.ndarray, speed: float, duration_s: float,
-                rng: np.random.Generator) -> Hover | Flyby | Orbit | Waypoints:
+                rng: np.random.Generator, max_bank_deg: float) -> Hover | Flyby | Orbit | Waypoints:
+    """A drawn path of ``kind`` around ``centre``; an orbit's radius keeps its bank within
+    ``max_bank_deg`` (the target kind's ``scenes.kinds.MAX_BANK_DEG``). A raised orbit's centre moves
+    away from the start point by the raise, so the target starts at the drawn orbit's start point,
+    on its heading, at the drawn range (a 600 m circle about the drawn point would take it hundreds of
+    metres out of its distance bin)."""
     heading = rng.uniform(0.0, 2 * math.pi)
     horiz = np.array([math.cos(heading), math.sin(heading), 0.0])
     c = _xyz(centre)
@@ -416,10 +431,15 @@ def _trajectory(kind: str, centre: np.ndarray, speed: float, duration_s: float,
         start = centre - velocity * duration_s / 2
         return Flyby(start_m=_xyz(start), velocity_mps=_xyz(velocity))
     if kind == "orbit":
-        radius = float(rng.uniform(5.0, 25.0))
-        return Orbit(center_m=c, radius_m=round(radius, 3), speed_mps=round(speed, 3),
-                     clockwise=bool(rng.random() < 0.5),
-                     start_angle_deg=round(float(rng.uniform(0, 360)), 3))
+        drawn = round(float(rng.uniform(5.0, 25.0)), 3)
+        clockwise = bool(rng.random() < 0.5)
+        start = round(float(rng.uniform(0, 360)), 3)
+        radius = _orbit_radius(drawn, round(speed, 3), max_bank_deg)
+        if radius > drawn:   # the wider circle starts where the drawn one did, on the same heading
+            outward = np.array([math.cos(math.radians(start)), math.sin(math.radians(start)), 0.0])
+            c = _xyz(centre - (radius - drawn) * outward)
+        return Orbit(center_m=c, radius_m=radius, speed_mps=round(speed, 3), clockwise=clockwise,
+                     start_angle_deg=start)
     spread = max(2.0, speed * duration_s / 3)
     points = [_xyz(centre + rng.uniform(-1, 1, 3) * np.array([spread, spread, spread / 4])) for _ in range(4)]
     return Waypoints(points_m=points, speed_mps=round(speed, 3))
@@ -513,7 +533,8 @@ def _draw_track(config: GenerationConfig, base: Scenario, p: int, target: dict, 
     speed = r.speed_mps.draw(rng)
     centre = cam_pos + distance * direction(bearing, elevation)
     centre[2] = max(centre[2], cam_pos[2] + 5.0)
-    target["trajectory"] = _trajectory(kind, centre, speed, duration, rng).model_dump(mode="python")
+    target["trajectory"] = _trajectory(kind, centre, speed, duration, rng,
+                                       MAX_BANK_DEG[target["kind"]]).model_dump(mode="python")
     width = config.image_size[0]
     hfov = math.degrees(target["size_m"] / distance * width / r.target_px.draw(rng))
     hfov = float(min(60.0, max(0.5, hfov)))
@@ -680,7 +701,7 @@ def _draw_distractors(r: Randomisation, targets: list[dict], primary: dict, rig:
             size, speed = target_size(rng, kind), float(rng.uniform(100.0, 220.0))
         centre = cam_pos + d * direction(b, e)
         centre[2] = max(centre[2], cam_pos[2] + 3.0)
-        traj = _trajectory("flyby", centre, speed, duration, rng)
+        traj = _trajectory("flyby", centre, speed, duration, rng, MAX_BANK_DEG[kind])
         name = f"distractor{j + 1}"
         while name in names:
             name += "_"

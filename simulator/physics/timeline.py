@@ -13,10 +13,9 @@ from scenes.defaults import offset_for
 from scenes.schema import HelicopterRotor, Scenario, Target
 from simulator.physics import thermal
 from simulator.physics.sky import ThermalSky
-from simulator.physics.trajectory import positions_m
+from simulator.physics.trajectory import GRAVITY_MPS2, positions_m
 from simulator.seeding import rng_for
 
-GRAVITY_MPS2 = 9.81
 _DIFF_STEP_S = 1e-3
 MULTIROTOR_DRAG_PER_M = 0.02
 

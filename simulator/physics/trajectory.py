@@ -1,9 +1,21 @@
 """Trajectory kinds -> position as a function of time (metres, seconds). Pure numpy."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from scenes.schema import Flyby, Hover, Orbit, Waypoints
+
+GRAVITY_MPS2 = 9.81
+
+
+def min_orbit_radius_m(speed_mps: float, max_bank_deg: float) -> float:
+    """Smallest radius of a level coordinated turn at ``speed_mps`` whose bank arctan(v^2 / (g r))
+    stays within ``max_bank_deg``: v^2 / (g tan(max_bank))."""
+    if not 0.0 < max_bank_deg < 90.0:
+        raise ValueError(f"max_bank_deg must be in (0, 90), got {max_bank_deg!r}")
+    return speed_mps ** 2 / (GRAVITY_MPS2 * math.tan(math.radians(max_bank_deg)))
 
 
 def _catmull_rom(points: np.ndarray, samples_per_segment: int = 64) -> np.ndarray:
