@@ -393,20 +393,3 @@ def _pa(level_db: float) -> float:
     from simulator.physics.acoustics import db_spl_to_pa
 
     return db_spl_to_pa(level_db)
-
-
-def test_shipped_protocol_sets_only_the_shared_ambience_traffic_and_aircraft_shares():
-    """examples/sim2real_svanstrom.yaml's ``audio:`` block validates and differs from the module defaults only
-    in the shared ambience's traffic / aircraft shares (eleventh pass, docs/SIM2REAL_AUDIO.md): one
-    distribution for every class, no background-only ambience, and the module defaults (TRIDENT, ``evids
-    demo``) untouched."""
-    from harness.experiments.sim2real.config import load_config
-    from simulator.physics.acoustics import AmbienceDistribution
-
-    cfg, _ = load_config()
-    shipped, default = A.synthetic_audio_config(cfg.audio).model_dump(), A.synthetic_audio_config({}).model_dump()
-    assert {k for k in default if shipped[k] != default[k]} == {"ambience"}
-    assert shipped["background_ambience"] is None
-    changed = {k: v for k, v in shipped["ambience"].items() if v != default["ambience"][k]}
-    assert changed == {"traffic_probability": 0.2, "aircraft_probability": 0.1}
-    assert (AmbienceDistribution().traffic_probability, AmbienceDistribution().aircraft_probability) == (0.4, 0.2)
