@@ -98,9 +98,10 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
             rows.append([f"{cls}", STAT_LABELS.get(stat, stat), _iqr(row["real_evaluation"]),
                          _iqr(row["real_calibration"]),
                          _iqr(row["synthetic"]), mark, cal_mark])
-    n_syn = sum(bool(r[5] == "yes") for r in rows)
-    n_cal = sum(bool(r[6] == "yes") for r in rows)
-    n_all = sum(r[5] != "&ndash;" for r in rows)
+    flags = [row for stats in res["statistics"].values() for row in stats.values() if row["inside"] is not None]
+    n_syn = sum(bool(row["inside"]) for row in flags)
+    n_cal = sum(bool(row.get("calibration_inside")) for row in flags)
+    n_all = len(flags)
     parts.append("<details open><summary>Per-class statistics: median [IQR]</summary>" +
                  _table(["class", "statistic", "real, evaluation half", "real, calibration half", "synthetic",
                          "synthetic median inside real IQR", "calibration median inside (null reference)"], rows)
