@@ -52,6 +52,17 @@ def _recall(classes: list[str], recall: list[float | None] | None) -> str:
     return ", ".join(f"{html.escape(c.lower())} {'-' if r is None else f'{r:.2f}'}" for c, r in zip(classes, recall))
 
 
+def _confusion_rows(classes: list[str], confusion: list[list[int]], source: str) -> list[list[str]]:
+    """One row per true class: its share called each class (row-normalised; "-" for an empty row)."""
+    rows = []
+    for cls, counts in zip(classes, confusion):
+        total = sum(counts)
+        shares = ["&ndash;" if not total else (f"<b>{c / total:.2f}</b>" if k == cls else f"{c / total:.2f}")
+                  for c, k in zip(counts, classes)]
+        rows.append([f"{source} {html.escape(cls)}", *shares])
+    return rows
+
+
 def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
     c = res["classifier"]
     n = res["n_clips"]
@@ -66,6 +77,17 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
              str(c["train_clips"].get(k, ""))] for k, v in c["conditions"].items()]
     parts.append(_table(["condition", "balanced accuracy [95 % CI]", "per seed", "recall per class (mean over seeds)",
                          "training crops", "training clips"], rows))
+    b_conf = c["conditions"].get("b_synthetic", {}).get("confusion")
+    reverse = c.get("reverse_transfer")
+    if b_conf or reverse:
+        rows = _confusion_rows(res["classes"], b_conf, "real") if b_conf else []
+        if reverse:
+            rows += _confusion_rows(res["classes"], reverse["confusion"], "synthetic")
+        parts.append(_table(["true class", *(f"called {html.escape(k.lower())}" for k in res["classes"])], rows)
+                     + "<p class='note'>Where the errors go, shares of each row over the training seeds: rows "
+                     "'real' are the real evaluation crops as the synthetic-only model (b) calls them; rows "
+                     "'synthetic' are the synthetic crops as the real-trained model (a) calls them (which real "
+                     "class each synthetic class resembles). Bold: the true class.</p>")
     rows = [[label, _ci(c.get(key), signed=key != "ratio_b_over_a")] for key, label in
             (("ratio_b_over_a", "ratio (b) / (a)"), ("gain_c_minus_a", "(c) - (a)"),
              ("gain_dplus_minus_d", "(d+) - (d)"))]

@@ -154,8 +154,9 @@ def _interval(res) -> dict[str, float]:
     return {"estimate": res.estimate, "ci_low": res.ci_low, "ci_high": res.ci_high}
 
 
-def _condition_job(name: str, seed: int) -> np.ndarray:
-    """Train condition ``name`` with ``seed`` (one torch thread) and predict the test crops."""
+def _condition_job(name: str, seed: int) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """Train condition ``name`` with ``seed`` (one torch thread) and predict the test crops; for the
+    condition named by the context's ``reverse`` (if any), also the reverse set's crops: (test, reverse)."""
     import torch
 
     torch.set_num_threads(1)
@@ -163,21 +164,35 @@ def _condition_job(name: str, seed: int) -> np.ndarray:
 
     f = job_context()
     net = train_cnn(f["sets"][name], f["n_classes"], seed=seed, **f["train"])
-    return predict(net, f["test"].x).argmax(1)
+    test = predict(net, f["test"].x).argmax(1)
+    reverse = f.get("reverse")
+    if reverse is not None and reverse[0] == name:
+        return test, predict(net, reverse[1].x).argmax(1)
+    return test
 
 
 def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int, *, seeds: Sequence[int], steps: int,
                         batch_size: int, learning_rate: float, bootstrap: int, rng_seed: int, workers: int = 1,
-                        label: str | None = None) -> dict[str, Any]:
+                        label: str | None = None, reverse: CropSet | None = None) -> dict[str, Any]:
     """Train every condition x seed (as forked jobs on ``workers`` processes, one torch thread each),
     evaluate on ``test``; balanced accuracy with clip-bootstrap CIs, the ratio (b)/(a), and the
-    differences (c)-(a) and (d+)-(d) with their minimum detectable differences."""
+    differences (c)-(a) and (d+)-(d) with their minimum detectable differences. With ``reverse`` (the
+    synthetic crops), the real-trained models (a) also classify those: ``reverse_transfer`` holds their
+    per-class recall and confusion (rows the synthetic class, columns what the real-trained model
+    calls it), the mirror image of (b)'s confusion on the real crops."""
     from harness.experiments.pipeline import forked_map
 
     jobs = [(name, int(seed)) for name, train in sets.items() if len(train.y) for seed in seeds]
+    with_reverse = reverse is not None and len(reverse.y) > 0 and "a_real" in sets and len(sets["a_real"].y) > 0
     context = dict(sets=sets, test=test, n_classes=n_classes,
-                   train=dict(steps=steps, batch_size=batch_size, learning_rate=learning_rate))
-    done = {jobs[i]: p for i, p in forked_map(_condition_job, jobs, workers, label, context=context)}
+                   train=dict(steps=steps, batch_size=batch_size, learning_rate=learning_rate),
+                   reverse=("a_real", reverse) if with_reverse else None)
+    done: dict[tuple[str, int], np.ndarray] = {}
+    reverse_preds: dict[int, np.ndarray] = {}
+    for i, p in forked_map(_condition_job, jobs, workers, label, context=context):
+        if isinstance(p, tuple):
+            p, reverse_preds[jobs[i][1]] = p
+        done[jobs[i]] = p
     preds: dict[str, np.ndarray] = {}      # condition -> (n_seeds, n_test) predicted class
     per_seed: dict[str, list[float]] = {}
     for name in dict.fromkeys(n for n, _ in jobs):
@@ -215,6 +230,11 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
         d["mde"] = float(Z_MDE * finite.std(ddof=1)) if finite.size > 2 else float("nan")
         return d
 
+    if with_reverse and reverse is not None:
+        out["reverse_transfer"] = {"label": "(a) real-trained model on the synthetic crops",
+                                   "n_crops": int(len(reverse.y)), "n_sequences": int(np.unique(reverse.clip).size),
+                                   **per_class(reverse.y, np.stack([reverse_preds[int(s)] for s in seeds]),
+                                               n_classes)}
     out["ratio_b_over_a"] = pair("a_real", "b_synthetic", "ratio")
     out["gain_c_minus_a"] = pair("a_real", "c_synthetic_plus_real", "diff")
     out["gain_dplus_minus_d"] = pair("d_few_shot", "d_plus_few_shot_synthetic", "diff")

@@ -322,7 +322,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         cond = classify.evaluate_conditions(sets, test, len(classes), seeds=seeds, steps=steps,
                                             batch_size=tr.batch_size, learning_rate=tr.learning_rate,
                                             bootstrap=min(tr.bootstrap, 200) if quick else tr.bootstrap,
-                                            rng_seed=cfg.seed,
+                                            rng_seed=cfg.seed, reverse=set_b,
                                             workers=vis.workers, label=f"{sensor}: crop classifiers" if progress
                                             else None)
         domain = {}
@@ -412,6 +412,11 @@ def format_table(summary: dict[str, Any]) -> str:
                                for k, v in zip(res["classes"], r.get("recall") or []))
             lines.append(f"  {classify.CONDITION_LABELS[name]:<40} {r['estimate']:.3f} [{r['ci_low']:.3f}, "
                          f"{r['ci_high']:.3f}]" + (f"  recall {recall}" if recall else ""))
+        rev = c.get("reverse_transfer")
+        if rev:
+            recall = ", ".join(f"{k.lower()} {'-' if v is None else f'{v:.2f}'}"
+                               for k, v in zip(res["classes"], rev["recall"]))
+            lines.append(f"  {'(a) on the synthetic crops (reverse)':<40} recall {recall}")
         for key, label in (("ratio_b_over_a", "ratio (b)/(a)"), ("gain_c_minus_a", "(c) - (a)"),
                            ("gain_dplus_minus_d", "(d+) - (d)")):
             r = c.get(key)

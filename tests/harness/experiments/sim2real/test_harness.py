@@ -51,6 +51,10 @@ def test_quick_run_writes_summary_page_and_sheets(quick_run):
         assert len(a_real["recall"]) == len(res["classes"]) and len(a_real["confusion"]) == len(res["classes"])
         present = [r for r in a_real["recall"] if r is not None]
         assert np.mean(present) == pytest.approx(np.mean(a_real["per_seed"]))
+        # reverse transfer: every synthetic crop classified once per seed by the real-trained model
+        rev = res["classifier"]["reverse_transfer"]
+        assert np.sum(rev["confusion"]) == rev["n_crops"] * len(conds["a_real"]["per_seed"])
+        assert rev["n_crops"] == res["classifier"]["train_sizes"]["b_synthetic"]
         assert res["n_clips"]["real_evaluation"] == (7 if sensor == "ir" else 8) and res["n_clips"]["synthetic"] == 4
         # the calibration half trains, the evaluation half tests: no clip in both
         assert res["classifier"]["train_clips"]["a_real"] == res["n_clips"]["real_calibration"]
@@ -62,6 +66,7 @@ def test_quick_run_writes_summary_page_and_sheets(quick_run):
     page = (out / "sim2real.html").read_text()
     assert "Sim-to-real" in page and "(b) synthetic only" in page and "data:image/png;base64" in page
     assert "ratio (b)/(a)" in proc.stdout and "recall drone" in proc.stdout and "recall per class" in page
+    assert "(a) on the synthetic crops (reverse)" in proc.stdout and "called drone" in page
     audio = summary["sensors"]["audio"]
     assert set(audio["classifier"]) == {"cnn", "logreg"} and audio["n_clips"]["evaluation"] == 6
     assert (out / "sheets" / audio["figure"]).stat().st_size > 1000 and "helicopter windows called drone" in page
@@ -227,3 +232,39 @@ def test_contact_sheets_are_written_with_a_label_bar_over_every_row(tmp_path):
     # rows of different widths are padded to the widest, with the gap between rows
     out = labelled_sheet([("a", np.zeros((10, 20), np.uint8)), ("b", np.zeros((10, 30, 3), np.uint8))], gap_px=2)
     assert out.shape == (2 * (bar + 10) + 2, 30, 3)
+
+
+def test_reverse_transfer_counts_what_the_real_trained_model_calls_each_synthetic_crop(monkeypatch):
+    """A stub network that always answers class 1: the real-trained models call every synthetic crop
+    class 1 (rows = synthetic class), once per seed; the other conditions' models are not asked."""
+    asked = []
+
+    class Net:
+        def __init__(self, name):
+            self.name = name
+
+    def fake_train(train, n_classes, **kw):
+        return Net(len(train.y))
+
+    def fake_predict(net, x, batch_size=1024):
+        asked.append((net.name, len(x)))
+        out = np.zeros((len(x), 3), np.float32)
+        out[:, 1] = 1.0
+        return out
+
+    monkeypatch.setattr(classify, "train_cnn", fake_train)
+    monkeypatch.setattr(classify, "predict", fake_predict)
+    mk = lambda y, tag: classify.CropSet(np.zeros((len(y), 1, 4, 4), np.float32), np.array(y),  # noqa: E731
+                                         np.array([f"{tag}{i}" for i in range(len(y))]))
+    real, syn, test = mk([0, 0, 1, 2], "r"), mk([0, 0, 0, 2, 2], "s"), mk([0, 1, 2], "t")
+    out = classify.evaluate_conditions({"a_real": real, "b_synthetic": syn}, test, 3, seeds=[0, 1], steps=1,
+                                       batch_size=2, learning_rate=1e-3, bootstrap=20, rng_seed=0, reverse=syn)
+    rev = out["reverse_transfer"]
+    assert rev["confusion"] == [[0, 6, 0], [0, 0, 0], [0, 4, 0]] and rev["recall"] == [0.0, None, 0.0]
+    assert rev["n_crops"] == 5 and rev["n_sequences"] == 5
+    # the synthetic set (5 crops) was predicted only by the real-trained models (trained on 4 crops)
+    assert sorted(n for trained_on, n in asked if n == 5) == [5, 5]
+    assert all(trained_on == 4 for trained_on, n in asked if n == 5)
+    assert "reverse_transfer" not in classify.evaluate_conditions(
+        {"b_synthetic": syn}, test, 3, seeds=[0], steps=1, batch_size=2, learning_rate=1e-3, bootstrap=20, rng_seed=0,
+        reverse=syn)
