@@ -135,6 +135,10 @@ def _visual(run_dir: Path, sensor: str, res: dict[str, Any]) -> str:
         if kind in files:
             parts.append(_sheet(run_dir, files[kind],
                                 f"{sensor}: {caption}, real (calibration half) vs synthetic, per class"))
+    if "reverse" in files:
+        parts.append(_sheet(run_dir, files["reverse"],
+                            f"{sensor}: synthetic crops grouped by what the real-trained model (a) calls them "
+                            "(majority over its training seeds)"))
     return "\n".join(parts)
 
 

@@ -54,6 +54,14 @@ def per_class(y: np.ndarray, preds: np.ndarray, n_classes: int) -> dict[str, lis
     return {"recall": recall, "confusion": confusion.tolist()}
 
 
+def majority_vote(preds: np.ndarray, n_classes: int) -> np.ndarray:
+    """Per column of ``preds`` (n_seeds, n): the class most seeds predicted (a tie: the lowest index)."""
+    counts = np.zeros((n_classes, preds.shape[1]), np.int64)
+    for row in preds:
+        np.add.at(counts, (row, np.arange(preds.shape[1])), 1)
+    return counts.argmax(axis=0)
+
+
 def crop_set(samples: Sequence[FrameSample], classes: Sequence[str], kind: str = "crop") -> CropSet:
     """Stack target crops (``kind="crop"``) or background patches into a training array."""
     rows: list[tuple[np.ndarray, int, str]] = []
@@ -231,10 +239,11 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
         return d
 
     if with_reverse and reverse is not None:
+        stacked_reverse = np.stack([reverse_preds[int(s)] for s in seeds])
         out["reverse_transfer"] = {"label": "(a) real-trained model on the synthetic crops",
                                    "n_crops": int(len(reverse.y)), "n_sequences": int(np.unique(reverse.clip).size),
-                                   **per_class(reverse.y, np.stack([reverse_preds[int(s)] for s in seeds]),
-                                               n_classes)}
+                                   **per_class(reverse.y, stacked_reverse, n_classes),
+                                   "majority": majority_vote(stacked_reverse, n_classes).tolist()}
     out["ratio_b_over_a"] = pair("a_real", "b_synthetic", "ratio")
     out["gain_c_minus_a"] = pair("a_real", "c_synthetic_plus_real", "diff")
     out["gain_dplus_minus_d"] = pair("d_few_shot", "d_plus_few_shot_synthetic", "diff")

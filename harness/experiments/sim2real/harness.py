@@ -213,6 +213,27 @@ def write_sheets(samples: list[FrameSample], clips: list[ClipSummary], sensor: s
     return out
 
 
+def reverse_sheet(synthetic: "classify.CropSet", called: Sequence[int], classes: list[str], path: Path,
+                  rng: np.random.Generator, per_row: int = 12) -> None:
+    """The synthetic crops grouped by what the real-trained model calls them (``called``: one class index per
+    crop, its seeds' majority): one labelled row per (synthetic class, called class) pair that occurs."""
+    images = np.clip(np.rint((synthetic.x + 0.5) * 255.0), 0, 255).astype(np.uint8)
+    images = images[:, 0] if images.shape[1] == 1 else images.transpose(0, 2, 3, 1)
+    called_arr = np.asarray(called)
+    rows: list[tuple[str, np.ndarray]] = []
+    for k, cls in enumerate(classes):
+        mine = synthetic.y == k
+        for j, name in enumerate(classes):
+            idx = np.flatnonzero(mine & (called_arr == j))
+            if idx.size:
+                share = idx.size / max(1, int(mine.sum()))
+                rows.append((f"synthetic {cls} called {name} by the real-trained model: {idx.size} crops "
+                             f"({100 * share:.0f} %)", _tile([images[i] for i in _pick(list(idx), per_row, rng)],
+                                                             64, per_row)))
+    if rows:
+        _write_png(path, labelled_sheet(rows))
+
+
 def _write_png(path: Path, rgb: np.ndarray) -> None:
     import cv2
 
@@ -349,6 +370,10 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
             detector = {"note": "off (visual.detector_frames_per_clip: 0)"}
         files = write_sheets(s_samples, [c for c in clip_summaries if c.sensor == sensor], sensor, classes, sheets,
                              rng_for(cfg.seed, "sim2real", 9, VISUAL_SENSORS.index(sensor)))
+        if cond.get("reverse_transfer"):
+            reverse_sheet(set_b, cond["reverse_transfer"]["majority"], classes, sheets / f"{sensor}_reverse.png",
+                          rng_for(cfg.seed, "sim2real", 10, VISUAL_SENSORS.index(sensor)))
+            files["reverse"] = f"{sensor}_reverse.png"
         summary["sensors"][sensor] = {
             "classes": classes,
             "n_clips": {"real_calibration": len({s.clip for s in real_cal}),

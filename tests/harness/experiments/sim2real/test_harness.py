@@ -54,7 +54,8 @@ def test_quick_run_writes_summary_page_and_sheets(quick_run):
         # reverse transfer: every synthetic crop classified once per seed by the real-trained model
         rev = res["classifier"]["reverse_transfer"]
         assert np.sum(rev["confusion"]) == rev["n_crops"] * len(conds["a_real"]["per_seed"])
-        assert rev["n_crops"] == res["classifier"]["train_sizes"]["b_synthetic"]
+        assert rev["n_crops"] == res["classifier"]["train_sizes"]["b_synthetic"] == len(rev["majority"])
+        assert res["sheets"]["reverse"] == f"{sensor}_reverse.png"
         assert res["n_clips"]["real_evaluation"] == (7 if sensor == "ir" else 8) and res["n_clips"]["synthetic"] == 4
         # the calibration half trains, the evaluation half tests: no clip in both
         assert res["classifier"]["train_clips"]["a_real"] == res["n_clips"]["real_calibration"]
@@ -67,6 +68,7 @@ def test_quick_run_writes_summary_page_and_sheets(quick_run):
     assert "Sim-to-real" in page and "(b) synthetic only" in page and "data:image/png;base64" in page
     assert "ratio (b)/(a)" in proc.stdout and "recall drone" in proc.stdout and "recall per class" in page
     assert "(a) on the synthetic crops (reverse)" in proc.stdout and "called drone" in page
+    assert "grouped by what the real-trained model (a) calls them" in page
     audio = summary["sensors"]["audio"]
     assert set(audio["classifier"]) == {"cnn", "logreg"} and audio["n_clips"]["evaluation"] == 6
     assert (out / "sheets" / audio["figure"]).stat().st_size > 1000 and "helicopter windows called drone" in page
@@ -261,10 +263,34 @@ def test_reverse_transfer_counts_what_the_real_trained_model_calls_each_syntheti
                                        batch_size=2, learning_rate=1e-3, bootstrap=20, rng_seed=0, reverse=syn)
     rev = out["reverse_transfer"]
     assert rev["confusion"] == [[0, 6, 0], [0, 0, 0], [0, 4, 0]] and rev["recall"] == [0.0, None, 0.0]
-    assert rev["n_crops"] == 5 and rev["n_sequences"] == 5
+    assert rev["n_crops"] == 5 and rev["n_sequences"] == 5 and rev["majority"] == [1, 1, 1, 1, 1]
     # the synthetic set (5 crops) was predicted only by the real-trained models (trained on 4 crops)
     assert sorted(n for trained_on, n in asked if n == 5) == [5, 5]
     assert all(trained_on == 4 for trained_on, n in asked if n == 5)
     assert "reverse_transfer" not in classify.evaluate_conditions(
         {"b_synthetic": syn}, test, 3, seeds=[0], steps=1, batch_size=2, learning_rate=1e-3, bootstrap=20, rng_seed=0,
         reverse=syn)
+
+
+def test_majority_vote_takes_the_most_common_class_and_the_lowest_on_a_tie():
+    preds = np.array([[0, 2, 1, 3],
+                      [2, 2, 0, 3],
+                      [2, 1, 1, 0]])
+    assert classify.majority_vote(preds, 4).tolist() == [2, 2, 1, 3]
+    assert classify.majority_vote(np.array([[1, 0], [0, 1]]), 2).tolist() == [0, 0]     # ties: lowest index
+
+
+def test_reverse_sheet_has_one_labelled_row_per_called_class(tmp_path):
+    import cv2
+
+    from harness.experiments.sim2real.harness import reverse_sheet
+
+    x = np.zeros((5, 1, 8, 8), np.float32) - 0.5
+    x[:, :, 3:5, 3:5] = 0.5                                         # a white 2x2 target on black
+    crops = classify.CropSet(x, np.array([0, 0, 0, 1, 1]), np.array(list("abcde")))
+    path = tmp_path / "ir_reverse.png"
+    reverse_sheet(crops, [0, 1, 1, 1, 1], ["DRONE", "BIRD"], path, np.random.default_rng(0), per_row=4)
+    sheet = cv2.imread(str(path))
+    # three rows (DRONE called DRONE, DRONE called BIRD, BIRD called BIRD): 3 x (18 px label bar + 64 px tiles)
+    assert sheet.shape[:2] == (3 * (18 + 64), 4 * 64)
+    assert sheet[18 + 32, 32].min() == 255 and sheet[18 + 2, 2].max() == 0      # the target is white, the sky black
