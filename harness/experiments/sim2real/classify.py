@@ -162,9 +162,9 @@ def _interval(res) -> dict[str, float]:
     return {"estimate": res.estimate, "ci_low": res.ci_low, "ci_high": res.ci_high}
 
 
-def _condition_job(name: str, seed: int) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-    """Train condition ``name`` with ``seed`` (one torch thread) and predict the test crops; for the
-    condition named by the context's ``reverse`` (if any), also the reverse set's crops: (test, reverse)."""
+def _condition_job(name: str, seed: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """Train condition ``name`` with ``seed`` (one torch thread); its predicted classes on the test crops
+    and, for the condition named by the context's ``reverse`` (if any), on the reverse set's crops (else None)."""
     import torch
 
     torch.set_num_threads(1)
@@ -176,7 +176,7 @@ def _condition_job(name: str, seed: int) -> np.ndarray | tuple[np.ndarray, np.nd
     reverse = f.get("reverse")
     if reverse is not None and reverse[0] == name:
         return test, predict(net, reverse[1].x).argmax(1)
-    return test
+    return test, None
 
 
 def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int, *, seeds: Sequence[int], steps: int,
@@ -197,10 +197,10 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
                    reverse=("a_real", reverse) if with_reverse else None)
     done: dict[tuple[str, int], np.ndarray] = {}
     reverse_preds: dict[int, np.ndarray] = {}
-    for i, p in forked_map(_condition_job, jobs, workers, label, context=context):
-        if isinstance(p, tuple):
-            p, reverse_preds[jobs[i][1]] = p
+    for i, (p, on_reverse) in forked_map(_condition_job, jobs, workers, label, context=context):
         done[jobs[i]] = p
+        if on_reverse is not None:
+            reverse_preds[jobs[i][1]] = on_reverse
     preds: dict[str, np.ndarray] = {}      # condition -> (n_seeds, n_test) predicted class
     per_seed: dict[str, list[float]] = {}
     for name in dict.fromkeys(n for n, _ in jobs):
@@ -238,7 +238,7 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
         d["mde"] = float(Z_MDE * finite.std(ddof=1)) if finite.size > 2 else float("nan")
         return d
 
-    if with_reverse and reverse is not None:
+    if reverse is not None and with_reverse:
         stacked_reverse = np.stack([reverse_preds[int(s)] for s in seeds])
         out["reverse_transfer"] = {"label": "(a) real-trained model on the synthetic crops",
                                    "n_crops": int(len(reverse.y)), "n_sequences": int(np.unique(reverse.clip).size),
@@ -273,7 +273,8 @@ def domain_classifier(real: CropSet, synthetic: CropSet, *, seeds: Sequence[int]
 
     context = dict(sets={"domain": train}, test=CropSet(test_x, test_y, np.zeros(len(test_y), str)), n_classes=2,
                    train=dict(steps=steps, batch_size=batch_size, learning_rate=learning_rate))
-    done = dict(forked_map(_condition_job, [("domain", int(s)) for s in seeds], workers, context=context))
+    done = {i: p for i, (p, _) in forked_map(_condition_job, [("domain", int(s)) for s in seeds], workers,
+                                            context=context)}
     accs = [balanced_accuracy(test_y, done[i]) if len(test_y) else float("nan") for i in range(len(seeds))]
     return {"accuracy": float(np.mean(accs)), "per_seed": accs, "n_train": int(len(train.y)),
             "n_test": int(len(test_y)),
