@@ -348,14 +348,14 @@ def _config_model():
         ambience_shapes: BedShapes = Field(
             default_factory=lambda: BedShapes(traffic_band_hz=(100.0, 5000.0), traffic_tilt_db=-5.5),
             description="spectra of the traffic and residual beds (every clip of every class; acoustics.BedShapes, "
-                        "whose defaults are the module's: traffic 40 Hz-2.5 kHz at -1.5 dB/octave, residual from 50 Hz). "
-                        "Traffic here: the EN 1793-3 normalised road-traffic spectrum (100 Hz-5 kHz) is tabled "
+                        "whose defaults are the module's: traffic 40 Hz-2.5 kHz at -1.5 dB/octave, residual from 50 "
+                        "Hz). Traffic here: the EN 1793-3 normalised road-traffic spectrum (100 Hz-5 kHz) is tabled "
                         "A-weighted; unweighted its 1/3-octave levels fall by about 2.5 dB per octave from 100 Hz to 5 "
                         "kHz, i.e. a PSD tilt of about -5.5 dB/octave, where the module's -1.5 makes the band levels "
-                        "rise to 1 kHz. The calibration half's four loud broadband backgrounds fall 1.5-2.5 dB per octave "
-                        "per band from 250 Hz to 3.15 kHz and sit 20-25 dB under their 125 Hz level at 50 Hz. Twelfth "
-                        "pass, docs/SIM2REAL_AUDIO.md: calibration-half statistics 149 / 134 / 137 -> 152 / 141 / 139 "
-                        "of 177 on the seed-0 / 1 / 2 sets")
+                        "rise to 1 kHz. The calibration half's four loud broadband backgrounds fall 1.5-2.5 dB per "
+                        "octave per band from 250 Hz to 3.15 kHz and sit 20-25 dB under their 125 Hz level at 50 Hz. "
+                        "Twelfth pass, docs/SIM2REAL_AUDIO.md: calibration-half statistics 149 / 134 / 137 -> 152 / "
+                        "141 / 139 of 177 on the seed-0 / 1 / 2 sets")
         machinery: MachineryDistribution | None = Field(
             default=None,
             description="a tonal machinery bed (mains hum, fans, engines: acoustics.machinery_bed) drawn for every "

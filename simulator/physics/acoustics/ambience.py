@@ -5,6 +5,7 @@ indices of every bed (``rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDE
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -328,7 +329,9 @@ def synthesize_ambience(ambience: Ambience, n_samples: int, sample_rate_hz: floa
         beds["birdsong"] = birdsong_bed(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 3), n_samples,
                                         sample_rate_hz, ambience.birdsong_db)
     residual = functools.partial(residual_bed, low_hz=shapes.residual_low_hz, tilt_db=shapes.residual_tilt_db)
-    for k, (name, maker) in enumerate((("residual", residual), ("rustle", rustle_bed), ("aircraft", aircraft_bed))):
+    makers: tuple[tuple[str, Callable[..., np.ndarray]], ...] = (("residual", residual), ("rustle", rustle_bed),
+                                                                 ("aircraft", aircraft_bed))
+    for k, (name, maker) in enumerate(makers):
         level = getattr(ambience, f"{name}_db")
         if level is not None:
             beds[name] = maker(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 4 + k), n_samples,

@@ -393,8 +393,8 @@ def test_resonances_off_by_default_and_reach_only_the_listed_classes():
 def test_default_bed_shapes_are_the_fit_and_reach_the_clips_with_traffic():
     """The default ``ambience_shapes`` is the twelfth pass's fit (traffic 100 Hz-5 kHz at -5.5 dB/octave, the
     residual bed the module's); it reaches exactly the clips of any class that draw the traffic bed (the
-    ambience is shared), deterministically; the module's shapes give main's samples back (the pinned sha256 above; the beds
-    take the same draws whatever their shape: tests/simulator/physics/acoustics/test_ambience.py)."""
+    ambience is shared), deterministically; the module's shapes give main's samples back (the pinned sha256
+    above; the beds take the same draws whatever their shape: tests/simulator/physics/acoustics/test_ambience.py)."""
     from simulator.physics.acoustics import BedShapes
 
     conf = A.synthetic_audio_config({})
@@ -415,7 +415,8 @@ def test_default_bed_shapes_are_the_fit_and_reach_the_clips_with_traffic():
     assert traffic == [False, True, False]
     assert [x.samples.tobytes() != y.samples.tobytes() for x, y in zip(fit, module)] == traffic
     always = {**cfg, "ambience": {"traffic_probability": 1.0}}       # the same draws, the bed on in every clip
-    fit, module = A.synthetic_audio_clips(always, 3, 1), A.synthetic_audio_clips({**always, "ambience_shapes": {}}, 3, 1)
+    fit = A.synthetic_audio_clips(always, 3, 1)
+    module = A.synthetic_audio_clips({**always, "ambience_shapes": {}}, 3, 1)
     assert [x.samples.tobytes() != y.samples.tobytes() for x, y in zip(fit, module)] == [True, True, True]
     with pytest.raises(UserInputError, match="ambience_shapes"):
         A.synthetic_audio_config({"ambience_shapes": {"residual_tilt_db": [-3.0, -6.0]}})
