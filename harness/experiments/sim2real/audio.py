@@ -282,7 +282,7 @@ def _config_model():
     from pydantic import BaseModel, ConfigDict, Field, model_validator
 
     from scenes.kinds import BENCHMARK_DRONE_SIZE_RANGE_M, DRONE_KINDS
-    from simulator.physics.acoustics.ambience import AmbienceDistribution, MachineryDistribution
+    from simulator.physics.acoustics.ambience import AmbienceDistribution, BedShapes, MachineryDistribution
     from simulator.sensors.microphone import RecorderConfig
 
     Span = tuple[float, float]
@@ -345,6 +345,17 @@ def _config_model():
                         "instead of stopping at the module's 16 kHz, which cut the 14.1-17.8 kHz third octave in half; "
                         "air absorption, the capsule and the encoder set the upper limit)")
         ambience: AmbienceDistribution = Field(default_factory=AmbienceDistribution)
+        ambience_shapes: BedShapes = Field(
+            default_factory=lambda: BedShapes(traffic_band_hz=(100.0, 5000.0), traffic_tilt_db=-5.5),
+            description="spectra of the traffic and residual beds (every clip of every class; acoustics.BedShapes, "
+                        "whose defaults are the module's: traffic 40 Hz-2.5 kHz at -1.5 dB/octave, residual from 50 "
+                        "Hz). Traffic here: the EN 1793-3 normalised road-traffic spectrum (100 Hz-5 kHz) is tabled "
+                        "A-weighted; unweighted its 1/3-octave levels fall by about 2.5 dB per octave from 100 Hz to 5 "
+                        "kHz, i.e. a PSD tilt of about -5.5 dB/octave, where the module's -1.5 makes the band levels "
+                        "rise to 1 kHz. The calibration half's four loud broadband backgrounds fall 1.5-2.5 dB per "
+                        "octave per band from 250 Hz to 3.15 kHz and sit 20-25 dB under their 125 Hz level at 50 Hz. "
+                        "Twelfth pass, docs/SIM2REAL_AUDIO.md: calibration-half statistics 149 / 134 / 137 -> 152 / "
+                        "141 / 139 of 177 on the seed-0 / 1 / 2 sets")
         machinery: MachineryDistribution | None = Field(
             default=None,
             description="a tonal machinery bed (mains hum, fans, engines: acoustics.machinery_bed) drawn for every "
@@ -687,14 +698,16 @@ def synthetic_audio_clips(config: dict | None, seed: int, n_per_class: int | Non
                 timeline = build_timeline(scenario, clip_seed)
                 timeline = _retuned(cfg, timeline, rng)            # draws last: the draws before it stay put
                 mix = ac.synthesize_audio(timeline, clip_seed, ambience=ambience, duration_s=cfg.duration_s,
-                                          sample_rate_hz=sr, rotor_noise_ranges=cfg.rotor_noise).mix_pa
+                                          sample_rate_hz=sr, rotor_noise_ranges=cfg.rotor_noise,
+                                          ambience_shapes=cfg.ambience_shapes).mix_pa
             elif cls == "HELICOPTER":
                 scenario, _ = _helicopter_scenario(cfg, rng, f"synthetic_helicopter_{j:04d}")
                 mix = ac.synthesize_audio(build_timeline(scenario, clip_seed), clip_seed, ambience=ambience,
                                           duration_s=cfg.duration_s, sample_rate_hz=sr,
-                                          helicopter_ranges=cfg.helicopter).mix_pa
+                                          helicopter_ranges=cfg.helicopter, ambience_shapes=cfg.ambience_shapes).mix_pa
             else:
-                mix = functools.reduce(operator.add, ac.synthesize_ambience(ambience, n, sr, clip_seed).values())
+                mix = functools.reduce(operator.add, ac.synthesize_ambience(ambience, n, sr, clip_seed,
+                                                                            shapes=cfg.ambience_shapes).values())
             if cfg.machinery is not None:                          # draws last: the draws before it stay put
                 machinery = ac.draw_machinery(rng, cfg.machinery)
                 if machinery is not None:

@@ -4,6 +4,9 @@ residual, rustle, aircraft, drifting broadband, calls), the tonal machinery bed,
 indices of every bed (``rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + k)``)."""
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
+
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -66,6 +69,31 @@ class AmbienceDistribution(BaseModel):
         return self
 
 
+class BedShapes(BaseModel):
+    """Spectral shapes of two broadband beds, for callers that fit them (the sim2real audio clips); the
+    defaults are the module's own shapes, so ``BedShapes()`` and None synthesise the same samples. Not part
+    of :class:`Ambience` / :class:`AmbienceDistribution` (whose dumps are hashed into TRIDENT manifests), and
+    no draw depends on it: the beds take the same random numbers whatever the shapes."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    traffic_band_hz: _Span = Field(default=(40.0, 2500.0), description="traffic bed band (Hz; the top clamped to "
+                                                                         "0.45 fs)")
+    traffic_tilt_db: float = Field(default=-1.5, ge=-12.0, le=3.0, description="traffic bed tilt (dB/octave)")
+    residual_low_hz: float = Field(default=50.0, gt=0.0, lt=10000.0, description="residual bed lower edge (Hz)")
+    residual_tilt_db: _Span = Field(default=(-9.0, -6.0), description="residual bed tilt span (dB/octave)")
+
+    @model_validator(mode="after")
+    def _spans(self) -> BedShapes:
+        for name in ("traffic_band_hz", "residual_tilt_db"):
+            lo, hi = getattr(self, name)
+            if lo > hi:
+                raise ValueError(f"{name}: low {lo} exceeds high {hi}")
+        if self.traffic_band_hz[0] <= 0:
+            raise ValueError(f"traffic_band_hz: must be > 0, got {self.traffic_band_hz[0]}")
+        return self
+
+
 def draw_ambience(rng: np.random.Generator, dist: AmbienceDistribution) -> Ambience:
     """One clip's beds from ``dist``: wind level and gust depth, then per optional bed (in OPTIONAL_BEDS
     order) on/off and a level (both drawn whenever its probability is > 0, so the draws do not depend
@@ -113,11 +141,13 @@ def calls_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db:
     return _scale_to(calls, level_db) if np.any(calls) else calls
 
 
-def traffic_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
-    """Road traffic at 50-500 m: tyre/road and engine noise 40 Hz-2.5 kHz (the EN 1793-3 normalised
-    traffic spectrum peaks near 1 kHz A-weighted, i.e. roughly flat unweighted up to ~1 kHz), with
-    vehicles passing (bell-shaped swells)."""
-    base = shaped_noise(rng, n, sample_rate_hz, 40.0, 2500.0, -1.5)
+def traffic_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float, *,
+                band_hz: tuple[float, float] = (40.0, 2500.0), tilt_db_per_octave: float = -1.5) -> np.ndarray:
+    """Road traffic at 50-500 m: tyre/road and engine noise over ``band_hz`` (default 40 Hz-2.5 kHz, the
+    top clamped to 0.45 fs) with a spectral tilt ``tilt_db_per_octave`` (default -1.5: the EN 1793-3
+    normalised traffic spectrum peaks near 1 kHz A-weighted; :class:`BedShapes` carries the unweighted
+    reading of it), with vehicles passing (bell-shaped swells)."""
+    base = shaped_noise(rng, n, sample_rate_hz, band_hz[0], min(band_hz[1], 0.45 * sample_rate_hz), tilt_db_per_octave)
     t = np.arange(n) / sample_rate_hz
     duration = n / sample_rate_hz
     passes = rng.uniform(-2.0, duration + 2.0, size=max(1, rng.poisson(0.5 * duration)))
@@ -148,11 +178,13 @@ def birdsong_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_
     return _scale_to(calls, level_db)
 
 
-def residual_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float) -> np.ndarray:
+def residual_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, level_db: float, *,
+                 low_hz: float = 50.0, tilt_db: tuple[float, float] = (-9.0, -6.0)) -> np.ndarray:
     """Residual outdoor sound (ISO 1996-2 'residual sound': what remains without specific sources):
-    broadband 50 Hz-10 kHz with a drawn tilt of -9..-6 dB/octave and a slow drift (4 dB std, 0.3 Hz)."""
-    tilt = float(rng.uniform(-9.0, -6.0))
-    base = shaped_noise(rng, n, sample_rate_hz, 50.0, 10000.0, tilt)
+    broadband ``low_hz`` (default 50 Hz)-10 kHz with a tilt drawn from ``tilt_db`` (dB/octave, default -9..-6)
+    and a slow drift (4 dB std, 0.3 Hz). The same draws whatever ``low_hz`` and ``tilt_db``."""
+    tilt = float(rng.uniform(*tilt_db))
+    base = shaped_noise(rng, n, sample_rate_hz, low_hz, 10000.0, tilt)
     drift = 10 ** (4.0 * smooth_random(rng, n, sample_rate_hz, 0.3) / 20)
     return _scale_to(base * drift, level_db)
 
@@ -277,23 +309,29 @@ def machinery_bed(rng: np.random.Generator, n: int, sample_rate_hz: float, machi
 
 
 def synthesize_ambience(ambience: Ambience, n_samples: int, sample_rate_hz: float, seed: int,
-                        *indices: int) -> dict[str, np.ndarray]:
-    """Each enabled bed (Pa at the microphone), from its own rng stream (seed, acoustics, *indices, 1000+k)."""
+                        *indices: int, shapes: BedShapes | None = None) -> dict[str, np.ndarray]:
+    """Each enabled bed (Pa at the microphone), from its own rng stream (seed, acoustics, *indices, 1000+k);
+    ``shapes`` sets the traffic and residual beds' spectra (None: the module's, as ``BedShapes()``)."""
     check_sample_rate(sample_rate_hz)
+    shapes = shapes or BedShapes()
     beds: dict[str, np.ndarray] = {}
     if ambience.wind_db is not None:
         beds["wind"] = wind_bed(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX), n_samples,
                                 sample_rate_hz, ambience.wind_db, ambience.gust_depth)
     if ambience.traffic_db is not None:
         beds["traffic"] = traffic_bed(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 1), n_samples,
-                                      sample_rate_hz, ambience.traffic_db)
+                                      sample_rate_hz, ambience.traffic_db, band_hz=shapes.traffic_band_hz,
+                                      tilt_db_per_octave=shapes.traffic_tilt_db)
     if ambience.rain_db is not None:
         beds["rain"] = rain_bed(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 2), n_samples,
                                 sample_rate_hz, ambience.rain_db)
     if ambience.birdsong_db is not None:
         beds["birdsong"] = birdsong_bed(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 3), n_samples,
                                         sample_rate_hz, ambience.birdsong_db)
-    for k, (name, maker) in enumerate((("residual", residual_bed), ("rustle", rustle_bed), ("aircraft", aircraft_bed))):
+    residual = functools.partial(residual_bed, low_hz=shapes.residual_low_hz, tilt_db=shapes.residual_tilt_db)
+    makers: tuple[tuple[str, Callable[..., np.ndarray]], ...] = (("residual", residual), ("rustle", rustle_bed),
+                                                                 ("aircraft", aircraft_bed))
+    for k, (name, maker) in enumerate(makers):
         level = getattr(ambience, f"{name}_db")
         if level is not None:
             beds[name] = maker(rng_for(seed, "acoustics", *indices, AMBIENT_SOURCE_INDEX + 4 + k), n_samples,

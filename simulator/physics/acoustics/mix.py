@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.kinds import DRONE_KINDS
-from simulator.physics.acoustics.ambience import Ambience, synthesize_ambience
+from simulator.physics.acoustics.ambience import Ambience, BedShapes, synthesize_ambience
 from simulator.physics.acoustics.levels import (
     AUDIO_SAMPLE_RATE_HZ,
     DEFAULT_GROUND_FACTOR,
@@ -41,14 +41,15 @@ def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, d
                      sample_rate_hz: float = AUDIO_SAMPLE_RATE_HZ, stream_indices: tuple[int, ...] = (),
                      ground_factor: float | None = DEFAULT_GROUND_FACTOR,
                      sound_power_db: dict[str, float] | None = None, rotor_noise_ranges: dict | None = None,
-                     helicopter_ranges: dict | None = None) -> AudioScene:
+                     helicopter_ranges: dict | None = None, ambience_shapes: BedShapes | None = None) -> AudioScene:
     """Audio of every timeline target plus ambient beds at the microphone (the camera rig).
 
     Target i draws from ``rng_for(seed, "acoustics", *stream_indices, i)``; beds from index 1000+k.
     ``duration_s`` defaults to the timeline span plus one frame. ``ground_factor`` is the ISO 9613-2
     G of the ground (0 hard, 1 porous, None = free field); ``sound_power_db`` overrides the L_WA
     of drones by target name; ``rotor_noise_ranges`` / ``helicopter_ranges`` replace spans of the
-    drawn source parameters (:func:`merged_ranges`; None keeps the module's ranges).
+    drawn source parameters (:func:`merged_ranges`; None keeps the module's ranges); ``ambience_shapes`` sets
+    the traffic and residual beds' spectra (:class:`BedShapes`; None: the module's).
     """
     check_sample_rate(sample_rate_hz)
     times = np.asarray(timeline.times_s, dtype=np.float64)
@@ -77,7 +78,8 @@ def synthesize_audio(timeline, seed: int, *, ambience: Ambience | None = None, d
         mix += received
         scene.targets_pa[track.name] = received.astype(np.float32)
         scene.target_range_m[track.name] = range_m.astype(np.float32)
-    for name, bed in synthesize_ambience(ambience or Ambience(), n, sample_rate_hz, seed, *stream_indices).items():
+    for name, bed in synthesize_ambience(ambience or Ambience(), n, sample_rate_hz, seed, *stream_indices,
+                                         shapes=ambience_shapes).items():
         mix += bed
         scene.ambience_pa[name] = bed.astype(np.float32)
     scene.mix_pa = mix.astype(np.float32)

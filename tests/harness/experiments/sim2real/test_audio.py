@@ -360,19 +360,20 @@ def test_background_only_beds_reach_only_the_background_clips():
 
 
 # sha256 of the samples of the clips below (seed 3, one per class, 2 s) on main 9ef1f81, before the
-# resonances existed: the default config must keep every class's clip byte for byte
+# resonances existed: with the module's bed shapes (``ambience_shapes: {}``) every class's clip is kept byte
+# for byte (the default shapes are the twelfth pass's fit: the test below)
 MAIN_2S_SHA256 = ("c8a1b39eaf7d5293b67761888bfeec7119991ba270472d283ff2b49498abca2e",
                   "78f9ecedb9822e0dc5c91859f93e4d02f0eac32c49edb040b0d764ee02578ac9",
                   "6fe30d997efdc94e354bbb0dcf8ac65d73891cfd3531e65271fcd3fc6d675924")
 
 
 def test_resonances_off_by_default_and_reach_only_the_listed_classes():
-    """``resonance_count`` {} (default) leaves every clip byte-identical to main's (sha256); listing a class
-    changes that class's clip only (its own acoustics stream, drawn after everything else), its RMS kept
-    before the recorder; a listed class with count 0 is unchanged."""
+    """``resonance_count`` {} (default) leaves every clip byte-identical to main's (sha256, with the module's bed
+    shapes); listing a class changes that class's clip only (its own acoustics stream, drawn after everything
+    else), its RMS kept before the recorder; a listed class with count 0 is unchanged."""
     import hashlib
 
-    cfg = {"duration_s": 2.0, "drone_range_m": [[10.0, 20.0]]}
+    cfg = {"duration_s": 2.0, "drone_range_m": [[10.0, 20.0]], "ambience_shapes": {}}
     off = A.synthetic_audio_clips(cfg, 3, 1)
     assert tuple(hashlib.sha256(c.samples.tobytes()).hexdigest() for c in off) == MAIN_2S_SHA256
     spans = {"resonance_hz": [150.0, 8000.0], "resonance_db": [6.0, 14.0], "resonance_q": [1.5, 5.0]}
@@ -387,6 +388,38 @@ def test_resonances_off_by_default_and_reach_only_the_listed_classes():
     assert np.sqrt(np.mean(out ** 2)) == pytest.approx(np.sqrt(np.mean(mix ** 2)), rel=1e-12)
     assert not np.allclose(out, mix)
     assert A._resonances(conf, "BACKGROUND", mix, 9, SR) is mix
+
+
+def test_default_bed_shapes_are_the_fit_and_reach_the_clips_with_traffic():
+    """The default ``ambience_shapes`` is the twelfth pass's fit (traffic 100 Hz-5 kHz at -5.5 dB/octave, the
+    residual bed the module's); it reaches exactly the clips of any class that draw the traffic bed (the
+    ambience is shared), deterministically; the module's shapes give main's samples back (the pinned sha256
+    above; the beds take the same draws whatever their shape: tests/simulator/physics/acoustics/test_ambience.py)."""
+    from simulator.physics.acoustics import BedShapes
+
+    conf = A.synthetic_audio_config({})
+    assert conf.ambience_shapes == BedShapes(traffic_band_hz=(100.0, 5000.0), traffic_tilt_db=-5.5)
+    assert A.synthetic_audio_config({"ambience_shapes": {}}).ambience_shapes == BedShapes()
+    from simulator.physics.acoustics import AmbienceDistribution, draw_ambience
+    from simulator.seeding import rng_for
+
+    cfg = {"duration_s": 2.0, "drone_range_m": [[10.0, 20.0]]}
+    fit, again = A.synthetic_audio_clips(cfg, 3, 1), A.synthetic_audio_clips(cfg, 3, 1)
+    module = A.synthetic_audio_clips({**cfg, "ambience_shapes": {}}, 3, 1)
+    assert [x.samples.tobytes() == y.samples.tobytes() for x, y in zip(fit, again)] == [True, True, True]
+    traffic = []                                     # which of these clips drew the traffic bed
+    for k in range(3):
+        rng = rng_for(3, "generation", A._SYNTH_TAG, k, 0)
+        rng.integers(0, 2 ** 31 - 1)
+        traffic.append(draw_ambience(rng, AmbienceDistribution()).traffic_db is not None)
+    assert traffic == [False, True, False]
+    assert [x.samples.tobytes() != y.samples.tobytes() for x, y in zip(fit, module)] == traffic
+    always = {**cfg, "ambience": {"traffic_probability": 1.0}}       # the same draws, the bed on in every clip
+    fit = A.synthetic_audio_clips(always, 3, 1)
+    module = A.synthetic_audio_clips({**always, "ambience_shapes": {}}, 3, 1)
+    assert [x.samples.tobytes() != y.samples.tobytes() for x, y in zip(fit, module)] == [True, True, True]
+    with pytest.raises(UserInputError, match="ambience_shapes"):
+        A.synthetic_audio_config({"ambience_shapes": {"residual_tilt_db": [-3.0, -6.0]}})
 
 
 def _pa(level_db: float) -> float:

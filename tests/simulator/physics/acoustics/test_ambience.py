@@ -145,3 +145,45 @@ def test_calls_bed_level_and_band():
     spec = np.abs(np.fft.rfft(calls)) ** 2
     f = np.fft.rfftfreq(n, 1.0 / FS)
     assert spec[f < 2000.0].sum() < 0.05 * spec.sum()
+
+
+def _third_octave_db(x: np.ndarray, centres: list[float]) -> np.ndarray:
+    spec = np.abs(np.fft.rfft(x)) ** 2
+    f = np.fft.rfftfreq(x.size, 1 / FS)
+    return np.array([10 * np.log10(spec[(f >= c * 10 ** -0.05) & (f < c * 10 ** 0.05)].sum()) for c in centres])
+
+
+def test_bed_shapes_default_is_the_module_and_set_the_traffic_and_residual_spectra():
+    """``BedShapes()`` and None synthesise the same samples; a fitted shape changes only the traffic and
+    residual beds, keeps their levels and their draws (the rng left in the same state), and gives the
+    spectra it names: traffic band levels falling with frequency at a -5.5 dB/octave PSD tilt (rising to 1 kHz
+    at the module's -1.5), the residual bed's 50 Hz band further under its 100 Hz band with a 100 Hz lower edge."""
+    n = 2 * FS
+    amb = ac.Ambience(wind_db=40.0, traffic_db=50.0, birdsong_db=35.0, residual_db=45.0, rustle_db=35.0)
+    plain = ac.synthesize_ambience(amb, n, FS, 7)
+    same = ac.synthesize_ambience(amb, n, FS, 7, shapes=ac.BedShapes())
+    fitted = ac.synthesize_ambience(amb, n, FS, 7, shapes=ac.BedShapes(traffic_band_hz=(100.0, 5000.0),
+                                                                        traffic_tilt_db=-5.5, residual_low_hz=100.0))
+    for name in plain:
+        assert plain[name].tobytes() == same[name].tobytes()
+        assert np.array_equal(plain[name], fitted[name]) == (name not in ("traffic", "residual")), name
+    for name, level in (("traffic", 50.0), ("residual", 45.0)):
+        assert ac.pa_to_db_spl(np.sqrt(np.mean(fitted[name] ** 2))) == pytest.approx(level, abs=1e-6)
+    octaves = [250.0, 500.0, 1000.0, 2000.0]              # 1/3-octave bands one octave apart
+    old = np.diff(_third_octave_db(plain["traffic"], octaves))
+    new = np.diff(_third_octave_db(fitted["traffic"], octaves))
+    assert np.all(old[:2] > 0.0)                           # the module's traffic band levels rise to 1 kHz
+    assert np.all((new > -4.0) & (new < -1.0))             # the fitted ones fall by 1-4 dB per octave
+    low = _third_octave_db(plain["residual"], [50.0, 100.0])
+    low_fit = _third_octave_db(fitted["residual"], [50.0, 100.0])
+    assert low_fit[1] - low_fit[0] > low[1] - low[0] + 3.0  # 50 Hz at least 3 dB further under 100 Hz
+    for bed, kwargs in ((ac.traffic_bed, {"band_hz": (100.0, 5000.0), "tilt_db_per_octave": -5.5}),
+                        (ac.residual_bed, {"low_hz": 100.0, "tilt_db": (-3.0, -1.0)})):
+        a, b = np.random.default_rng(4), np.random.default_rng(4)
+        bed(a, FS, FS, 40.0)
+        bed(b, FS, FS, 40.0, **kwargs)
+        assert a.random() == b.random(), bed.__name__          # the same draws whatever the shape
+    with pytest.raises(ValueError, match="residual_tilt_db: low -3.0 exceeds high -6.0"):
+        ac.BedShapes(residual_tilt_db=(-3.0, -6.0))
+    with pytest.raises(ValueError, match="traffic_band_hz"):
+        ac.BedShapes(traffic_band_hz=(0.0, 2500.0))
