@@ -301,6 +301,10 @@ class ThermalCamera(CameraIntrinsics):
     agc_base_sigma_px: float = Field(default=0.0, ge=0.0, le=200.0,
                                      description="plateau: local contrast, Gaussian base (0 = off)")
     agc_base_gain: float = Field(default=1.0, ge=0.0, le=1.0, description="plateau: gain of the base about its mean")
+    agc_base_opening_px: int | None = Field(
+        default=None, ge=3, le=401, description="plateau: the base is the Gaussian of the counts' grey opening over "
+                                                "a disc this wide (px): hotter content narrower than it (the "
+                                                "targets) stays detail, no dark ring round it; None = off")
     agc_gamma: float = Field(default=1.0, ge=0.25, le=4.0,
                              description="plateau: gamma on the transfer (FLIR ACE; > 1: more grey levels for hot "
                                          "content, darker sky; 1 = off)")
@@ -309,7 +313,7 @@ class ThermalCamera(CameraIntrinsics):
                                                      "the range (FLIR ITT mean / brightness; None = off)")
 
     #: fields added after the scenario format froze, left out of scenario.yaml while unset
-    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("agc_mean_level",)
+    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("agc_mean_level", "agc_base_opening_px")
 
     @model_serializer(mode="wrap")
     def _dump(self, handler):

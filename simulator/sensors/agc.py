@@ -12,7 +12,12 @@
   cores' local-contrast step (FLIR's digital detail enhancement acts on the equalised modes): the
   counts' Gaussian low-pass (``base_sigma_px``) is scaled by ``base_gain`` about its frame mean and
   the detail added back, so a slow sky gradient flattens to mid-grey while a hot ground leaves the
-  dark halo above the horizon that the real clips show. Last, an optional gamma on the transfer
+  dark halo above the horizon that the real clips show. The Gaussian base also rises around a hot target and
+  leaves a dark ring round it (the halo of an unsharp mask); ``base_opening_px`` > 0 takes the base as
+  the Gaussian of the counts' grey-scale opening over a disc that wide instead, so hot content narrower
+  than the disc (the targets) stays wholly detail with no ring, while the ground and wider clouds still
+  form the base: an edge-aware split in the spirit of FLIR's digital detail enhancement, which
+  "attenuates high-amplitude signals" rather than cutting round them. Last, an optional gamma on the transfer
   (FLIR's "active contrast enhancement", ACE, same application note: gamma > 1 gives more grey
   levels to the hotter scene content and darkens the cold sky).
 - Visible: **auto-exposure** metered over the whole frame (mean linear luminance driven to a key,
@@ -92,6 +97,7 @@ class PlateauAgc:
     base_gain: float = 1.0
     gamma: float = 1.0
     mean_level: float | None = None
+    base_opening_px: int = 0
     _transfer: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -107,11 +113,17 @@ class PlateauAgc:
                                         self.min_span_bins)
 
     def local_contrast(self, counts: np.ndarray) -> np.ndarray:
-        """Counts with the Gaussian base scaled by base_gain about its mean (detail kept); uint16."""
+        """Counts with the base (the Gaussian, of the grey opening when ``base_opening_px`` > 0) scaled by
+        base_gain about its mean (detail kept); uint16."""
         import cv2
 
         x = counts.astype(np.float32)
-        base = cv2.GaussianBlur(x, (0, 0), self.base_sigma_px, borderType=cv2.BORDER_REFLECT_101)
+        smooth = x
+        if self.base_opening_px > 0:                                     # hot content narrower than the disc out
+            size = int(self.base_opening_px)
+            disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+            smooth = cv2.morphologyEx(x, cv2.MORPH_OPEN, disc, borderType=cv2.BORDER_REFLECT_101)
+        base = cv2.GaussianBlur(smooth, (0, 0), self.base_sigma_px, borderType=cv2.BORDER_REFLECT_101)
         mean = np.float32(base.mean(dtype=np.float64))
         x -= base                                                        # detail
         base -= mean

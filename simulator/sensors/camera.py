@@ -411,7 +411,8 @@ class ThermalSensor:
         self._scratch = Scratch()
         self._plateau = PlateauAgc(p.kelvin_per_count, p.agc_bin_k, p.agc_plateau_fraction, p.agc_linear_fraction,
                                    p.agc_tail_fraction, p.agc_min_span_k, p.agc_damping, p.agc_base_sigma_px,
-                                   p.agc_base_gain, p.agc_gamma, p.agc_mean_level) if p.agc == "plateau" else None
+                                   p.agc_base_gain, p.agc_gamma, p.agc_mean_level,
+                                   p.agc_base_opening_px or 0) if p.agc == "plateau" else None
 
     def detector_radiance(self, frame: int, radiance: np.ndarray) -> np.ndarray:
         """Optics + in-frame motion + bolometer lag, in W sr^-1 m^-2 (no noise)."""

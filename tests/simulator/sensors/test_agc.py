@@ -106,6 +106,27 @@ def test_local_contrast_flattens_a_slow_gradient_and_keeps_the_detail():
     assert np.abs(kept.local_contrast(counts).astype(int) - counts).max() <= 1              # gain 1 = identity
 
 
+def test_opening_base_leaves_no_dark_ring_round_a_hot_target():
+    """The Gaussian base rises round a hot blob and leaves a dark ring (unsharp-mask halo); the base of the
+    opening does not see a blob narrower than its disc: no ring, the blob's full amplitude kept as detail,
+    and a wide warm ground still goes into the base (flattened)."""
+    y, x = np.mgrid[0:128, 0:160]
+    counts = np.full((128, 160), 27000, dtype=np.uint16)
+    counts[(y - 40) ** 2 + (x - 80) ** 2 <= 36] += 800              # a 13 px, +8 K target
+    counts[96:, :] += 1500                                          # warm ground, 15 K
+    args = (0.01, 0.05, 0.005, 0.5, 0.005, 4.0, 0.0)
+    ring = ((y - 40) ** 2 + (x - 80) ** 2 >= 100) & ((y - 40) ** 2 + (x - 80) ** 2 <= 196)
+    far = np.s_[5:15, 5:30]
+    gauss = PlateauAgc(*args, base_sigma_px=12.0, base_gain=0.02).local_contrast(counts).astype(float)
+    opened = PlateauAgc(*args, base_sigma_px=12.0, base_gain=0.02, base_opening_px=25).local_contrast(counts)
+    opened = opened.astype(float)
+    assert gauss[ring].mean() < gauss[far].mean() - 40                            # the halo: > 0.4 K darker
+    assert abs(opened[ring].mean() - opened[far].mean()) < 5                     # none
+    assert opened[40, 80] - opened[far].mean() > 790                              # the target's full 8 K
+    assert gauss[40, 80] - gauss[far].mean() < 750                                # the Gaussian base ate some
+    assert np.median(opened[110:, :]) - np.median(opened[far]) < 0.2 * 1500      # the ground is flattened
+
+
 def test_gamma_darkens_the_sky_and_keeps_black_and_white():
     """ACE gamma > 1: the transfer's mid levels go down (the sky darkens), its ends stay at 0 and 255."""
     rng = np.random.default_rng(1)

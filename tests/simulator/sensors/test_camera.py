@@ -201,7 +201,7 @@ def test_metadata_records_every_sensor_parameter():
     tl = _timeline()
     meta = cam.CameraModel(tl, 10.0).metadata()
     for field in ThermalCamera.model_fields:
-        if field == "agc_mean_level":                     # opt-in, left out of every dump while unset
+        if field in ("agc_mean_level", "agc_base_opening_px"):   # opt-in, left out of every dump while unset
             assert field not in meta["thermal"]
             continue
         assert field in meta["thermal"]
@@ -211,6 +211,12 @@ def test_metadata_records_every_sensor_parameter():
     pinned = cam.CameraModel(_timeline(agc="plateau", agc_mean_level=0.41), 10.0)
     assert pinned.metadata()["thermal"]["agc_mean_level"] == 0.41                 # recorded once set
     assert pinned.thermal._plateau.mean_level == 0.41                            # and passed to the gain stage
+    assert pinned.thermal._plateau.base_opening_px == 0                          # unset: the Gaussian base
+    opened = cam.CameraModel(_timeline(agc="plateau", agc_base_opening_px=13), 10.0)
+    assert opened.metadata()["thermal"]["agc_base_opening_px"] == 13
+    assert opened.thermal._plateau.base_opening_px == 13
+    with pytest.raises(ValidationError, match="agc_base_opening_px"):
+        ThermalCamera(agc_base_opening_px=1)                                     # a 1 px disc opens nothing
 
 
 def test_14_bit_counts_clip_and_need_a_coarse_enough_scale():
