@@ -2,6 +2,8 @@
 a reference computed in the same run on the same frames:
 
 - plateau equalisation (agc: plateau) vs the plain histogram equalisation (agc: histogram);
+- the local-contrast step's halo-free base (agc_base_opening_px 21, the sim2real drone camera's) vs its
+  Gaussian base (sigma 15 px), both at that camera's 320x256 (every other pixel of the same frames);
 - the camcorder tone (tone: camcorder) vs the fixed sRGB look-up (tone: srgb);
 - the H.264 recording stage (camera_rig.recording) for an RGB and a grey frame vs writing the same
   frame as PNG (simulator.formats.native.write_png, which every native render already does).
@@ -58,6 +60,10 @@ def main() -> None:
     counts, levels = _frames(args.frames)
     plateau = PlateauAgc(0.01, 0.05, 0.01, 0.2, 0.005, 4.0, 0.9)
     local = PlateauAgc(0.01, 0.05, 0.005, 0.5, 0.005, 16.0, 0.9, base_sigma_px=30.0, base_gain=0.0)   # 15 px at 320
+    gaussian_320 = PlateauAgc(0.01, 0.05, 0.005, 0.1, 0.0, 16.0, 0.9, base_sigma_px=15.0, base_gain=0.02)
+    opened_320 = PlateauAgc(0.01, 0.05, 0.005, 0.1, 0.0, 16.0, 0.9, base_sigma_px=15.0, base_gain=0.02,
+                            base_opening_px=21)
+    counts_320 = [np.ascontiguousarray(c[::2, ::2]) for c in counts]
     camcorder = CamcorderExposure(1 / 4095, 4095, 0.25, 0.9, 0.85, 0.25)
     srgb_lut = np.arange(4096, dtype=np.uint16).astype(np.uint8)
     rgb8 = [camcorder(x) for x in levels]
@@ -71,6 +77,8 @@ def main() -> None:
              _per_frame_ms(equalise_counts, counts)),
             ("plateau + local contrast", _per_frame_ms(local, counts), "histogram AGC",
              _per_frame_ms(equalise_counts, counts)),
+            ("320x256: opening base", _per_frame_ms(opened_320, counts_320), "Gaussian base",
+             _per_frame_ms(gaussian_320, counts_320)),
             ("camcorder AE + tone (RGB)", _per_frame_ms(camcorder, levels), "sRGB LUT",
              _per_frame_ms(lambda x: srgb_lut.take(x.ravel()).reshape(x.shape), levels)),
             ("H.264 encode+decode RGB", _per_frame_ms(rgb_stream, rgb8), "PNG write RGB",

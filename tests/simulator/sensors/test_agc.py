@@ -143,7 +143,8 @@ def test_gamma_darkens_the_sky_and_keeps_black_and_white():
 
 def test_protocol_gain_lifts_a_clear_sky_over_warm_ground():
     """The sim2real protocol's IR gain (examples/sim2real/realism_*.yaml, one camera for all four classes;
-    the drone clips' camera also holds its output mean, docs/SIM2REAL.md "Drone-only sky level")
+    the drone clips' camera also holds its output mean and opens its base, docs/SIM2REAL.md "Drone-only sky
+    level", "Drone halos")
     puts a clear sky over warm ground well above the former fit (linear 0.3, base gain 0.05, gamma 1.5),
     which printed clear skies 30-40 grey levels darker than the real camera (docs/SIM2REAL.md, "IR sky
     level under the gain stage"); a cloud layer lifts the frame under the former fit (the mechanism)."""
@@ -155,7 +156,8 @@ def test_protocol_gain_lifts_a_clear_sky_over_warm_ground():
     root = Path(__file__).resolve().parents[3] / "examples" / "sim2real"
     thermal = [yaml.safe_load((root / f"realism_{c}.yaml").read_text())["camera_rig"]["thermal"]
                for c in ("drone", "bird", "airplane", "helicopter")]
-    assert thermal[0].pop("agc_mean_level") == 0.41 and all("agc_mean_level" not in t for t in thermal[1:])
+    assert thermal[0].pop("agc_mean_level") == 0.42 and all("agc_mean_level" not in t for t in thermal[1:])
+    assert thermal[0].pop("agc_base_opening_px") == 21 and all("agc_base_opening_px" not in t for t in thermal[1:])
     assert all(t == thermal[0] for t in thermal)                                 # one camera, every class
     t = thermal[0]
     rng = np.random.default_rng(2)
