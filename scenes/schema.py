@@ -168,6 +168,17 @@ class Clouds(_Model):
     coverage: float = Field(ge=0.0, le=1.0)
     altitude_m: float = Field(default=2000.0, gt=0.0)
     scale_deg: float = Field(default=20.0, gt=0.0, description="typical cloud size on the sky")
+    edge_width_sd: float | None = Field(
+        default=None, gt=0.0, le=20.0,
+        description="width of a cloud's edge: the cover rises from 0 to 1 over this many standard deviations of "
+                    "the fractal field above the coverage threshold (None = 1.2; wider = softer, thinner edges)")
+
+    #: fields added after the scenario format froze, left out of scenario.yaml while unset
+    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("edge_width_sd",)
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
 
 
 class Sky(_Model):

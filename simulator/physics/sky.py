@@ -51,6 +51,10 @@ def elevation_rad(directions: np.ndarray) -> np.ndarray:
     return np.arcsin(np.clip(directions[..., 2], -1.0, 1.0))
 
 
+#: the cover's rise from 0 to 1 above the coverage threshold, in standard deviations of the fractal field
+DEFAULT_EDGE_WIDTH_SD = 1.2
+
+
 class CloudField:
     """A seeded, periodic fractal cover field on the cloud plane; coverage(dirs) in [0, 1]."""
 
@@ -67,7 +71,8 @@ class CloudField:
         field = np.real(np.fft.ifft2(spectrum / radius ** 2.2))
         field = (field - field.mean()) / field.std()
         threshold = np.quantile(field, 1.0 - clouds.coverage) if clouds.coverage > 0 else np.inf
-        self._density = np.clip((field - threshold) / 1.2, 0.0, 1.0) if clouds.coverage < 1 else np.ones_like(field)
+        edge = clouds.edge_width_sd if clouds.edge_width_sd is not None else DEFAULT_EDGE_WIDTH_SD
+        self._density = np.clip((field - threshold) / edge, 0.0, 1.0) if clouds.coverage < 1 else np.ones_like(field)
         self._period_m = clouds.altitude_m * np.tan(np.radians(clouds.scale_deg)) * 16.0
 
     def coverage(self, directions: np.ndarray) -> np.ndarray:

@@ -54,3 +54,18 @@ def test_cloud_base_is_warmer_than_clear_sky_and_colder_than_air():
     assert np.all(thermal.brightness_temperature(overcast) < 288.0)
     # straight up through ~2 km of air the cloud base looks within a few K of its own temperature
     assert thermal.brightness_temperature(overcast[2]) == pytest.approx(cloud_k, abs=4.0)
+
+
+def test_cloud_edge_width_softens_the_cover_and_keeps_the_default():
+    """edge_width_sd: unset is the former 1.2 (the same field byte for byte, and left out of the dump); a wider
+    edge keeps the covered area (the same threshold) but turns hard 0/1 cover into partial cover."""
+    from simulator.physics.sky import DEFAULT_EDGE_WIDTH_SD, CloudField
+
+    unset = CloudField(Clouds(coverage=0.3), seed=5)._density
+    assert np.array_equal(unset, CloudField(Clouds(coverage=0.3, edge_width_sd=DEFAULT_EDGE_WIDTH_SD), seed=5)._density)
+    assert "edge_width_sd" not in Clouds(coverage=0.3).model_dump()
+    soft = CloudField(Clouds(coverage=0.3, edge_width_sd=4.0), seed=5)._density
+    assert np.array_equal(unset > 0, soft > 0)                                   # the same clouds
+    assert np.mean(soft[soft > 0] >= 1.0) < 0.5 * np.mean(unset[unset > 0] >= 1.0)   # fewer opaque cores
+    with pytest.raises(ValueError, match="edge_width_sd"):
+        Clouds(coverage=0.3, edge_width_sd=0.0)
