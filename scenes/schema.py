@@ -336,6 +336,10 @@ class ThermalCamera(CameraIntrinsics):
         if full_scale_k < 400.0:
             raise ValueError(f"kelvin_per_count x (2^adc_bits - 1) = {full_scale_k:.0f} K must reach 400 K "
                              f"(radiometric counts T = counts * kelvin_per_count)")
+        if self.agc_base_opening_px is not None and (self.agc != "plateau" or self.agc_base_sigma_px <= 0):
+            raise ValueError("agc_base_opening_px shapes the local-contrast base: it needs agc: plateau and "
+                             f"agc_base_sigma_px > 0 (got agc {self.agc!r}, "
+                             f"agc_base_sigma_px {self.agc_base_sigma_px})")
         return self
 
 

@@ -212,11 +212,13 @@ def test_metadata_records_every_sensor_parameter():
     assert pinned.metadata()["thermal"]["agc_mean_level"] == 0.41                 # recorded once set
     assert pinned.thermal._plateau.mean_level == 0.41                            # and passed to the gain stage
     assert pinned.thermal._plateau.base_opening_px == 0                          # unset: the Gaussian base
-    opened = cam.CameraModel(_timeline(agc="plateau", agc_base_opening_px=13), 10.0)
+    opened = cam.CameraModel(_timeline(agc="plateau", agc_base_sigma_px=15.0, agc_base_opening_px=13), 10.0)
     assert opened.metadata()["thermal"]["agc_base_opening_px"] == 13
     assert opened.thermal._plateau.base_opening_px == 13
     with pytest.raises(ValidationError, match="agc_base_opening_px"):
-        ThermalCamera(agc_base_opening_px=1)                                     # a 1 px disc opens nothing
+        ThermalCamera(agc="plateau", agc_base_sigma_px=15.0, agc_base_opening_px=1)   # a 1 px disc opens nothing
+    with pytest.raises(ValidationError, match="agc_base_opening_px"):
+        ThermalCamera(agc="plateau", agc_base_opening_px=21)                     # no base to open: inert, refused
 
 
 def test_14_bit_counts_clip_and_need_a_coarse_enough_scale():
