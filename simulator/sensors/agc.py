@@ -104,6 +104,12 @@ class PlateauAgc:
         self.bin_counts = max(1, round(self.bin_k / self.kelvin_per_count))
         self.n_bins = (COUNTS_LEVELS - 1) // self.bin_counts + 1
         self.min_span_bins = self.min_span_k / (self.bin_counts * self.kelvin_per_count)
+        self._disc = None
+        if self.base_opening_px > 0:                                     # the opening's element, built once
+            import cv2
+
+            size = int(self.base_opening_px)
+            self._disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
 
     def transfer_of(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(bin index of every pixel, undamped transfer per bin) of one frame of counts."""
@@ -119,10 +125,8 @@ class PlateauAgc:
 
         x = counts.astype(np.float32)
         smooth = x
-        if self.base_opening_px > 0:                                     # hot content narrower than the disc out
-            size = int(self.base_opening_px)
-            disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
-            smooth = cv2.morphologyEx(x, cv2.MORPH_OPEN, disc, borderType=cv2.BORDER_REFLECT_101)
+        if self._disc is not None:                                       # hot content narrower than the disc out
+            smooth = cv2.morphologyEx(x, cv2.MORPH_OPEN, self._disc, borderType=cv2.BORDER_REFLECT_101)
         base = cv2.GaussianBlur(smooth, (0, 0), self.base_sigma_px, borderType=cv2.BORDER_REFLECT_101)
         mean = np.float32(base.mean(dtype=np.float64))
         x -= base                                                        # detail

@@ -42,6 +42,12 @@ class CropSet:
     y: np.ndarray          # (n,) int
     clip: np.ndarray       # (n,) str: the clip/sequence id
 
+    def images(self) -> np.ndarray:
+        """The crops back as 8-bit images: (n, px, px) grey or (n, px, px, 3) colour (the inverse of
+        :func:`crop_set`'s scaling)."""
+        images = np.clip(np.rint((self.x + 0.5) * 255.0), 0, 255).astype(np.uint8)
+        return images[:, 0] if images.shape[1] == 1 else images.transpose(0, 2, 3, 1)
+
 
 def per_class(y: np.ndarray, preds: np.ndarray, n_classes: int) -> dict[str, list]:
     """Per-class recall (mean over the seeds' predictions ``preds``, shape (n_seeds, n_test); None for a

@@ -217,8 +217,7 @@ def reverse_sheet(synthetic: "classify.CropSet", called: Sequence[int], classes:
                   rng: np.random.Generator, per_row: int = 12) -> None:
     """The synthetic crops grouped by what the real-trained model calls them (``called``: one class index per
     crop, its seeds' majority): one labelled row per (synthetic class, called class) pair that occurs."""
-    images = np.clip(np.rint((synthetic.x + 0.5) * 255.0), 0, 255).astype(np.uint8)
-    images = images[:, 0] if images.shape[1] == 1 else images.transpose(0, 2, 3, 1)
+    images = synthetic.images()
     called_arr = np.asarray(called)
     rows: list[tuple[str, np.ndarray]] = []
     for k, cls in enumerate(classes):

@@ -272,6 +272,18 @@ def test_reverse_transfer_counts_what_the_real_trained_model_calls_each_syntheti
         reverse=syn)
 
 
+def test_crop_set_images_give_back_the_8_bit_crops():
+    """CropSet.images inverts crop_set's scaling, grey and colour (what the reverse sheet shows)."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(0)
+    for shape in ((32, 32), (32, 32, 3)):
+        crops = [rng.integers(0, 256, shape, dtype=np.uint8) for _ in range(3)]
+        got = classify.crop_set([SimpleNamespace(crop=c, background=None, cls="DRONE", clip="c") for c in crops],
+                                ["DRONE"])
+        assert np.array_equal(got.images(), np.stack(crops))
+
+
 def test_majority_vote_takes_the_most_common_class_and_the_lowest_on_a_tie():
     preds = np.array([[0, 2, 1, 3],
                       [2, 2, 0, 3],
