@@ -249,7 +249,10 @@ class CameraIntrinsics(_Model):
     width_px: int = Field(default=640, ge=16, le=4096)
     height_px: int = Field(default=512, ge=16, le=4096)
     hfov_deg: float = Field(default=30.0, gt=0.1, lt=170.0)
-    spp: int = Field(default=4, ge=1, le=1024, description="samples per pixel of the radiance pass")
+    spp: int = Field(default=4, ge=1, le=1024, description=(
+        "samples per pixel of the radiance pass (with small targets only their tiles are sampled; the sky "
+        "outside them is evaluated at pixel centres); a target covering less than a pixel needs 16-32, or it "
+        "blinks from frame to frame as its few samples hit or miss it"))
     label_margin_px: tuple[Annotated[int, Field(ge=0, le=256)], Annotated[int, Field(ge=0, le=256)]] = Field(
         default=(0, 0), description="[x, y] pixels added on each side of every label box (clipped to the frame), as "
                                     "human annotators draw boxes; the exact box stays in box_tight. (0, 0) = exact")

@@ -308,7 +308,8 @@ class GenerationConfig(_Model):
     image_size: tuple[Annotated[int, Field(ge=16, le=4096)], Annotated[int, Field(ge=16, le=4096)]] = (320, 256)
     thermal_image_size: tuple[Annotated[int, Field(ge=16, le=4096)],
                               Annotated[int, Field(ge=16, le=4096)]] | None = None
-    spp: int = Field(default=4, ge=1, le=1024)
+    spp: int = Field(default=4, ge=1, le=1024,
+                     description="both cameras' samples per pixel (CameraIntrinsics.spp: sub-pixel targets need 16-32)")
     splits: Splits = Field(default_factory=Splits)
 
 
