@@ -9,7 +9,10 @@ Stages (each switchable; parameters that the hardware leaves open are drawn per 
 2. self-noise of capsule and preamplifier (a white floor, dB re full scale after the gain);
 3. automatic gain control: the level (RMS in 50 ms blocks) is followed with a fast attack and a slow
    release and the gain steers it to a target level, between a minimum and maximum gain, as consumer
-   recorders and laptop inputs do (the gain 'pumps' with loud events);
+   recorders and laptop inputs do (the gain 'pumps' with loud events); opt-in (``agc_detector: mean``)
+   the detector instead follows the mean of the block levels in dB with one time constant (the drawn
+   release) both ways, as WebRTC's AGC2 speech-level estimator does (a leaky average of frame RMS levels
+   in dBFS), so a governed recording sits at its target on average rather than under it;
 3b. a downward expander (noise gate) on some recorders (laptop inputs and their noise suppression):
    below a threshold level the gain falls by (ratio - 1) dB per dB, within a range; in the calibration
    half quiet recordings (backgrounds, far drones) dip 15-20 dB under their median 100 ms level in 6
@@ -27,9 +30,12 @@ laptop; its response, gain and AGC are not published, hence the ranges.
 """
 from __future__ import annotations
 
-import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from typing import ClassVar, Literal
 
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
+
+from scenes.schema import omit_when_unset
 from simulator.seeding import rng_for
 
 RECORDER_STREAM_INDEX = 3000
@@ -55,6 +61,12 @@ class RecorderConfig(BaseModel):
     agc_attack_s: float = Field(default=0.05, gt=0.0)
     agc_max_gain_db: float = Field(default=3.0, ge=0.0)
     agc_min_gain_db: float = Field(default=-26.0, le=0.0)
+    agc_detector: Literal["peak", "mean"] | None = Field(default=None, description=(
+        "the AGC's level detector: 'peak' (None, the default) follows the 50 ms block RMS with agc_attack_s "
+        "rising and the drawn release falling, so a governed recording sits under its target by its level "
+        "swings; 'mean' follows the mean of the block levels in dB with the drawn release both ways "
+        "(WebRTC AGC2's speech-level estimator: a leaky average of frame RMS levels in dBFS), so a steady "
+        "recording sits at its target"))
     input_gain_db: Span = Field(default=(-8.0, 4.0), description="gain before the AGC (or the fixed gain without it)")
     gate_probability: float = Field(default=0.5, ge=0.0, le=1.0, description="share of clips with a noise gate")
     gate_threshold_dbfs: Span = (-48.0, -36.0)
@@ -67,6 +79,13 @@ class RecorderConfig(BaseModel):
     codec_edge_hz: float = Field(default=300.0, gt=0.0, description="width of the encoder's raised-cosine edge")
     codec_floor_db: float = Field(default=-70.0, le=0.0, description="what the encoder leaves above its cutoff")
     clip: bool = True
+
+    #: fields added after TRIDENT manifests froze, left out of dumps (and their hashes) while unset
+    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("agc_detector",)
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
 
     @model_validator(mode="after")
     def _spans(self) -> RecorderConfig:
@@ -110,21 +129,28 @@ def _apply_response(x: np.ndarray, sample_rate_hz: float, response_db_fn) -> np.
 
 
 def agc_gain(x: np.ndarray, sample_rate_hz: float, target_dbfs: float, attack_s: float, release_s: float,
-             min_gain_db: float, max_gain_db: float) -> np.ndarray:
-    """Per-sample AGC gain: block RMS (50 ms) followed by a one-pole attack/release detector (level
-    rising: attack time constant, falling: release), gain = target / level within the gain limits."""
+             min_gain_db: float, max_gain_db: float, detector: str = "peak") -> np.ndarray:
+    """Per-sample AGC gain: block RMS (50 ms) followed by a one-pole detector, gain = target / level within
+    the gain limits. ``detector`` 'peak': on the RMS, level rising with the attack time constant, falling
+    with the release; 'mean': on the block levels in dB, the release time constant both ways."""
+    if detector not in ("peak", "mean"):
+        raise ValueError(f"detector must be 'peak' or 'mean', got {detector!r}")
     block = max(1, round(AGC_BLOCK_S * sample_rate_hz))
     n_blocks = int(np.ceil(x.size / block))
     padded = np.pad(x, (0, n_blocks * block - x.size))
     level = np.sqrt(np.mean(padded.reshape(n_blocks, block) ** 2, axis=1) + 1e-20)
     a_att, a_rel = np.exp(-AGC_BLOCK_S / attack_s), np.exp(-AGC_BLOCK_S / release_s)
+    if detector == "mean":
+        attack_s, a_att = release_s, a_rel
+        level = 20 * np.log10(level)
     env = np.empty(n_blocks)
     e = level[0]
     for i, v in enumerate(level):                      # a few hundred blocks: a plain loop is fine
         a = a_att if v > e else a_rel
         e = a * e + (1 - a) * v
         env[i] = e
-    gain_db = np.clip(target_dbfs - 20 * np.log10(env), min_gain_db, max_gain_db)
+    env_db = env if detector == "mean" else 20 * np.log10(env)
+    gain_db = np.clip(target_dbfs - env_db, min_gain_db, max_gain_db)
     centres = (np.arange(n_blocks) + 0.5) * block
     return 10 ** (np.interp(np.arange(x.size), centres, gain_db) / 20)
 
@@ -174,7 +200,8 @@ def record(pressure_pa: np.ndarray, sample_rate_hz: float, *, seed: int, index: 
     gate = (u(cfg.gate_threshold_dbfs), u(cfg.gate_ratio), u(cfg.gate_range_db), u(cfg.gate_release_s))
     y = _apply_response(x, sample_rate_hz, lambda f: microphone_response_db(f, hp, lp, pres_db, pres_hz)) * input_gain
     if cfg.agc:
-        y = y * agc_gain(y, sample_rate_hz, target, cfg.agc_attack_s, release, cfg.agc_min_gain_db, cfg.agc_max_gain_db)
+        y = y * agc_gain(y, sample_rate_hz, target, cfg.agc_attack_s, release, cfg.agc_min_gain_db, cfg.agc_max_gain_db,
+                         detector=cfg.agc_detector or "peak")
     y = y + 10 ** (noise_dbfs / 20) * rng.standard_normal(y.size)
     if gate_on:                        # the gate follows the digitised signal, self-noise included
         y = y * gate_gain(y, sample_rate_hz, *gate)

@@ -102,3 +102,57 @@ def test_gate_lowers_only_what_falls_under_its_threshold():
     y = mic.record(quiet, FS, seed=0, full_scale_pa=1.0, config=cfg)
     tail = 20 * np.log10(np.sqrt(np.mean(y[int(1.5 * FS):].astype(np.float64) ** 2)))
     assert tail == pytest.approx(-65.0, abs=0.3)
+
+
+def _two_level(loud_dbfs: float, quiet_dbfs: float, seconds: float, period_s: float = 1.0) -> np.ndarray:
+    """A 1 kHz tone (RMS 1 before scaling) switching every half period between two levels (dBFS)."""
+    t = np.arange(round(seconds * FS)) / FS
+    loud = (t % period_s) < period_s / 2
+    level = np.where(loud, 10 ** (loud_dbfs / 20), 10 ** (quiet_dbfs / 20))
+    return np.sqrt(2) * np.sin(2 * np.pi * 1000 * t) * level
+
+
+def _block_db(y: np.ndarray, block: int) -> np.ndarray:
+    n = y.size // block
+    return 10 * np.log10(np.mean(y[: n * block].astype(np.float64).reshape(n, block) ** 2, axis=1))
+
+
+def test_agc_mean_detector_puts_the_mean_block_level_on_the_target():
+    """A tone alternating 0.5 s at -30 and 0.5 s at -50 dBFS, target -25, release 5 s (the gain ripples by about
+    +-1 dB over a period): the 'mean' detector follows the mean block level in dB (-40), so the gain settles near
+    +15 dB and the output's 50 ms levels average the target (-25: -15 and -35 dBFS); the 'peak' detector follows
+    the loud half (-30 after its 50 ms attack), so the gain sits near +5 dB and the output's mean level is the
+    target minus half the 20 dB swing (-35, its loud half at the target)."""
+    x = _two_level(-30.0, -50.0, 30.0)
+    block = round(mic.AGC_BLOCK_S * FS)
+    settled = slice(20 * FS, 30 * FS)                  # 10 whole periods after 4 release time constants
+    mean = x * mic.agc_gain(x, FS, -25.0, 0.05, 5.0, -40.0, 40.0, detector="mean")
+    peak = x * mic.agc_gain(x, FS, -25.0, 0.05, 5.0, -40.0, 40.0, detector="peak")
+    assert np.mean(_block_db(mean[settled], block)) == pytest.approx(-25.0, abs=0.3)
+    assert np.mean(_block_db(peak[settled], block)) == pytest.approx(-35.0, abs=0.6)
+    assert np.median(_block_db(peak[settled], block)[::20]) == pytest.approx(-25.0, abs=0.6)   # loud halves
+    assert np.array_equal(peak, x * mic.agc_gain(x, FS, -25.0, 0.05, 5.0, -40.0, 40.0))       # peak: the default
+    steady = np.sqrt(2) * np.sin(2 * np.pi * 1000 * np.arange(4 * FS) / FS) * 10 ** (-40 / 20)
+    for detector in ("mean", "peak"):                  # a steady tone: both put it on the target
+        y = steady * mic.agc_gain(steady, FS, -25.0, 0.05, 1.0, -40.0, 40.0, detector=detector)
+        assert 20 * np.log10(np.sqrt(np.mean(y[2 * FS:] ** 2))) == pytest.approx(-25.0, abs=0.05)
+    with pytest.raises(ValueError, match="detector"):
+        mic.agc_gain(steady, FS, -25.0, 0.05, 1.0, -40.0, 40.0, detector="rms")
+
+
+def test_agc_detector_is_opt_in_and_left_out_of_dumps_while_unset():
+    """Unset (None) the recorder keeps the peak detector byte for byte and its dump (hashed into TRIDENT
+    manifests) has no ``agc_detector`` key; 'mean' is dumped and changes the recording; a bad value names the
+    field."""
+    assert "agc_detector" not in mic.RecorderConfig().model_dump()
+    assert mic.RecorderConfig(agc_detector="mean").model_dump()["agc_detector"] == "mean"
+    again = mic.RecorderConfig.model_validate(mic.RecorderConfig(agc_detector="mean").model_dump())
+    assert again.agc_detector == "mean"
+    x = _two_level(-20.0, -45.0, 4.0) * 0.1
+    default = mic.record(x, FS, seed=2, full_scale_pa=0.1)
+    assert default.tobytes() == mic.record(x, FS, seed=2, full_scale_pa=0.1,
+                                           config=mic.RecorderConfig(agc_detector="peak")).tobytes()
+    assert default.tobytes() != mic.record(x, FS, seed=2, full_scale_pa=0.1,
+                                           config=mic.RecorderConfig(agc_detector="mean")).tobytes()
+    with pytest.raises(ValueError, match="agc_detector"):
+        mic.RecorderConfig(agc_detector="rms")

@@ -108,7 +108,8 @@ def test_synthetic_clips_are_deterministic_per_seed_and_labelled():
                                         ({"resonance_hz": [8000.0, 150.0]}, "resonance_hz"),
                                         ({"resonance_hz": [0.0, 150.0]}, "resonance_hz"),
                                         ({"resonance_db": [14.0, 6.0]}, "resonance_db"),
-                                        ({"resonance_q": [5.0, 1.5]}, "resonance_q")])
+                                        ({"resonance_q": [5.0, 1.5]}, "resonance_q"),
+                                        ({"microphone": {"agc_detector": "rms"}}, "microphone.agc_detector")])
 def test_bad_config_names_the_field(bad, field):
     with pytest.raises(UserInputError, match=field.replace("[", r"\[").replace("]", r"\]")):
         A.synthetic_audio_clips(bad, 0, 1)
