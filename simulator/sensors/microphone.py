@@ -141,7 +141,7 @@ def agc_gain(x: np.ndarray, sample_rate_hz: float, target_dbfs: float, attack_s:
     level = np.sqrt(np.mean(padded.reshape(n_blocks, block) ** 2, axis=1) + 1e-20)
     a_att, a_rel = np.exp(-AGC_BLOCK_S / attack_s), np.exp(-AGC_BLOCK_S / release_s)
     if detector == "mean":
-        attack_s, a_att = release_s, a_rel
+        a_att = a_rel                                  # one time constant both ways
         level = 20 * np.log10(level)
     env = np.empty(n_blocks)
     e = level[0]
