@@ -47,5 +47,42 @@ def sim2real(
     typer.echo(f"report: {out / 'sim2real.html'}")
 
 
+def sim2real_compare(
+    before: Path = typer.Option(..., "--before", help="The `evids sim2real` run folder of the simulator before the "
+                                "change."),
+    after: Path = typer.Option(..., "--after", help="The run folder after it (same real data and protocol sizes)."),
+    json_out: Path = typer.Option(None, "--json", help="Also write the comparison here (a new .json file; an "
+                                  "existing one is not replaced)."),
+    bootstrap: int = typer.Option(1000, "--bootstrap", min=100, max=100_000, help="Clip resamples."),
+) -> None:
+    """Judge a simulator change: every crop classifier condition of two sim2real runs compared PAIRED on the
+    same real evaluation crops (balanced accuracy after - before, a clip-bootstrap 95 % interval and the
+    minimum detectable difference). Nothing is retrained; the runs keep their predictions.
+
+    Example: evids sim2real-compare --before out/s2r_main --after out/s2r_change
+    """
+    import json
+
+    from harness.experiments.sim2real.compare import compare_runs, format_comparison
+    from scenes.errors import UserInputError
+    from simulator.files import write_atomic
+
+    for name, folder in (("--before", before), ("--after", after)):
+        if not (folder / "sim2real.json").is_file():
+            raise UserInputError(f"{name}: {str(folder)!r} holds no sim2real.json (not a finished sim2real run)")
+    if json_out is not None:
+        if json_out.suffix != ".json":
+            raise UserInputError(f"--json: {str(json_out)!r} must end in .json")
+        if json_out.exists():
+            raise UserInputError(f"--json: {str(json_out)!r} exists; choose a new file")
+    result = compare_runs(before, after, bootstrap=bootstrap)
+    typer.echo(format_comparison(result))
+    if json_out is not None:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(json_out, json.dumps(result, indent=1, sort_keys=True) + "\n")
+        typer.echo(f"written: {json_out}")
+
+
 def register(app: typer.Typer) -> None:
     app.command("sim2real")(sim2real)
+    app.command("sim2real-compare")(sim2real_compare)

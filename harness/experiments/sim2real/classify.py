@@ -10,6 +10,7 @@ the balanced accuracy, and its 95 % interval comes from a clip bootstrap of the 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
@@ -187,13 +188,16 @@ def _condition_job(name: str, seed: int) -> tuple[np.ndarray, np.ndarray | None]
 
 def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int, *, seeds: Sequence[int], steps: int,
                         batch_size: int, learning_rate: float, bootstrap: int, rng_seed: int, workers: int = 1,
-                        label: str | None = None, reverse: CropSet | None = None) -> dict[str, Any]:
+                        label: str | None = None, reverse: CropSet | None = None,
+                        predictions: Path | None = None) -> dict[str, Any]:
     """Train every condition x seed (as forked jobs on ``workers`` processes, one torch thread each),
     evaluate on ``test``; balanced accuracy with clip-bootstrap CIs, the ratio (b)/(a), and the
     differences (c)-(a) and (d+)-(d) with their minimum detectable differences. With ``reverse`` (the
     synthetic crops), the real-trained models (a) also classify those: ``reverse_transfer`` holds their
     per-class recall and confusion (rows the synthetic class, columns what the real-trained model
-    calls it), the mirror image of (b)'s confusion on the real crops."""
+    calls it), the mirror image of (b)'s confusion on the real crops. With ``predictions`` (a path), every
+    condition's predicted classes on ``test`` are kept there for paired before / after comparisons of two
+    runs (``harness.experiments.sim2real.compare``)."""
     from harness.experiments.pipeline import forked_map
 
     jobs = [(name, int(seed)) for name, train in sets.items() if len(train.y) for seed in seeds]
@@ -215,6 +219,10 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
         per_seed[name] = [balanced_accuracy(test.y, r) for r in rows]
     names = list(preds)
     stacked = np.stack([preds[n] for n in names], axis=2) if names else np.zeros((len(seeds), len(test.y), 0))
+    if predictions is not None:
+        from harness.experiments.sim2real.compare import write_predictions
+
+        write_predictions(predictions, test.y, test.clip, names, seeds, stacked.transpose(2, 0, 1))
 
     def mean_balacc(k: int):
         return lambda y, p: float(np.mean([balanced_accuracy(y, p[:, s, k]) for s in range(p.shape[1])]))

@@ -250,6 +250,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     from harness.experiments.pipeline import forked_results
     from harness.experiments.sim2real import audio as _audio  # noqa: F401
     from harness.experiments.sim2real import detect as _detect  # noqa: F401
+    from harness.experiments.sim2real.compare import predictions_path
     from harness.report.sim2real import write_page
     from harness.runfolder import write_json
     from scenes.errors import UserInputError
@@ -343,6 +344,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                                             batch_size=tr.batch_size, learning_rate=tr.learning_rate,
                                             bootstrap=min(tr.bootstrap, 200) if quick else tr.bootstrap,
                                             rng_seed=cfg.seed, reverse=set_b,
+                                            predictions=predictions_path(out, sensor),
                                             workers=vis.workers, label=f"{sensor}: crop classifiers" if progress
                                             else None)
         domain = {}

@@ -306,3 +306,27 @@ def test_reverse_sheet_has_one_labelled_row_per_called_class(tmp_path):
     # three rows (DRONE called DRONE, DRONE called BIRD, BIRD called BIRD): 3 x (18 px label bar + 64 px tiles)
     assert sheet.shape[:2] == (3 * (18 + 64), 4 * 64)
     assert sheet[18 + 32, 32].min() == 255 and sheet[18 + 2, 2].max() == 0      # the target is white, the sky black
+
+
+def test_quick_run_keeps_its_predictions_for_paired_comparisons(quick_run, tmp_path):
+    """predictions/<sensor>.npz hold what the summary's per-seed balanced accuracies were computed from; the
+    run compared with itself (`evids sim2real-compare`) differs by exactly zero in every condition."""
+    from harness.experiments.sim2real import compare
+
+    _, out, proc = quick_run
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    summary = json.loads((out / "sim2real.json").read_text())
+    for sensor in ("ir", "visible"):
+        got = compare.read_predictions(compare.predictions_path(out, sensor))
+        conds = summary["sensors"][sensor]["classifier"]["conditions"]
+        assert list(got["conditions"]) == list(conds)
+        for k, name in enumerate(got["conditions"]):
+            assert [classify.balanced_accuracy(got["y"], p) for p in got["predicted"][k]] == \
+                pytest.approx(conds[name]["per_seed"])
+    same = _cli("sim2real-compare", "--before", str(out), "--after", str(out), "--json", str(tmp_path / "same.json"),
+                "--bootstrap", "100")
+    assert same.returncode == 0, same.stderr[-2000:]
+    res = json.loads((tmp_path / "same.json").read_text())
+    assert set(res["sensors"]) == {"ir", "visible"}
+    assert all(c["difference"] == c["ci_low"] == c["ci_high"] == 0.0
+               for s in res["sensors"].values() for c in s["conditions"].values())

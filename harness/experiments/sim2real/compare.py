@@ -1,0 +1,139 @@
+"""Before / after: two `evids sim2real` run folders compared on the same real evaluation crops.
+
+Each run keeps, per visual sensor, what every crop classifier predicted for every real evaluation crop
+(``predictions/<sensor>.npz``: the true classes, the clip of each crop, and the predicted classes per
+condition and training seed). Two runs of the same real data and protocol sizes hold the same crops in
+the same order, so a change of the simulator can be judged *paired*: the difference of a condition's
+balanced accuracy (mean over seeds) between the runs, with a 95 % interval from a bootstrap that draws
+evaluation clips, the same draws for both runs, and its minimum detectable difference (2.8 standard
+errors of that bootstrap: a two-sided 5 % test with 80 % power). Pairing removes the variance of the
+real test set that an unpaired comparison of two runs' intervals carries; the variance of drawing
+another synthetic set is not in it (that needs more draws, not more crops).
+"""
+from __future__ import annotations
+
+import io
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from evids.metrics.bootstrap import clustered_bootstrap
+from harness.experiments.sim2real.classify import CONDITION_LABELS, Z_MDE, balanced_accuracy
+
+PREDICTIONS_DIR = "predictions"
+FORMAT_VERSION = 1
+
+
+def predictions_path(run: Path, sensor: str) -> Path:
+    """Where a run folder keeps ``sensor``'s crop-classifier predictions."""
+    return Path(run) / PREDICTIONS_DIR / f"{sensor}.npz"
+
+
+def write_predictions(path: Path, y: np.ndarray, clip: np.ndarray, conditions: Sequence[str], seeds: Sequence[int],
+                      predicted: np.ndarray) -> None:
+    """Write (atomically) ``predicted`` (conditions x seeds x crops class indices) for the crops of
+    classes ``y`` and clips ``clip``."""
+    from simulator.files import write_atomic
+
+    predicted = np.asarray(predicted)
+    if predicted.shape != (len(conditions), len(seeds), len(y)):
+        raise ValueError(f"predicted has shape {predicted.shape}, expected {(len(conditions), len(seeds), len(y))}")
+    buf = io.BytesIO()
+    np.savez_compressed(buf, format_version=np.int64(FORMAT_VERSION), y=np.asarray(y, np.int64),
+                        clip=np.asarray(clip, str), conditions=np.asarray(list(conditions), str),
+                        seeds=np.asarray(list(seeds), np.int64), predicted=predicted.astype(np.int16))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, buf.getvalue())
+
+
+def read_predictions(path: Path, field: str = "run") -> dict[str, Any]:
+    """The arrays of :func:`write_predictions`; a missing or unreadable file is a ``UserInputError``
+    naming ``field``."""
+    from scenes.errors import UserInputError
+
+    if not path.is_file():
+        raise UserInputError(f"{field}: {str(path.parent.parent)!r} holds no {PREDICTIONS_DIR}/{path.name} (a run of "
+                             f"`evids sim2real` from before predictions were kept, an audio-only run, or not a run "
+                             f"folder): rerun it")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:
+        raise UserInputError(f"{field}: {str(path)!r} is not a predictions file ({exc})") from None
+    if int(data.get("format_version", -1)) != FORMAT_VERSION:
+        raise UserInputError(f"{field}: {str(path)!r} has predictions format {data.get('format_version')}, "
+                             f"this version reads {FORMAT_VERSION}")
+    return data
+
+
+def _mean_balacc(y: np.ndarray, predicted: np.ndarray) -> float:
+    return float(np.mean([balanced_accuracy(y, p) for p in predicted]))
+
+
+def compare_sensor(before: dict[str, Any], after: dict[str, Any], *, bootstrap: int, rng_seed: int,
+                   sensor: str = "") -> dict[str, Any]:
+    """Paired differences after - before per condition both runs have (see the module docstring)."""
+    from scenes.errors import UserInputError
+
+    if not (np.array_equal(before["y"], after["y"]) and np.array_equal(before["clip"], after["clip"])):
+        raise UserInputError(f"{sensor}: the two runs' real evaluation crops differ ({len(before['y'])} against "
+                             f"{len(after['y'])} crops, or other clips or classes): they were not made from the same "
+                             f"real data with the same frames per clip, so they cannot be paired")
+    y, clips = before["y"], before["clip"]
+    names_b, names_a = [str(n) for n in before["conditions"]], [str(n) for n in after["conditions"]]
+    out: dict[str, Any] = {"n_test_crops": int(len(y)), "n_test_clips": int(np.unique(clips).size),
+                           "conditions": {}}
+    for name in [n for n in names_b if n in names_a]:
+        pb, pa = before["predicted"][names_b.index(name)], after["predicted"][names_a.index(name)]
+        data = np.concatenate([pb.T, pa.T], axis=1)      # rows = crops: before seeds, then after seeds
+        k = pb.shape[0]
+
+        def diff(yy: np.ndarray, d: np.ndarray, k: int = k) -> float:
+            return _mean_balacc(yy, d[:, k:].T) - _mean_balacc(yy, d[:, :k].T)
+
+        res = clustered_bootstrap(diff, y, data, clusters=clips, rng=rng_seed, n_resamples=bootstrap)
+        finite = res.samples[np.isfinite(res.samples)]
+        out["conditions"][name] = {
+            "label": CONDITION_LABELS.get(name, name), "before": _mean_balacc(y, pb), "after": _mean_balacc(y, pa),
+            "difference": res.estimate, "ci_low": res.ci_low, "ci_high": res.ci_high,
+            "mde": float(Z_MDE * finite.std(ddof=1)) if finite.size > 2 else float("nan")}
+    return out
+
+
+def compare_runs(before: Path, after: Path, *, sensors: Sequence[str] = ("ir", "visible"), bootstrap: int = 1000,
+                 rng_seed: int = 0) -> dict[str, Any]:
+    """Every visual sensor both runs measured: :func:`compare_sensor`. A sensor only one run has is listed
+    under ``skipped``; none in common is a ``UserInputError``."""
+    from scenes.errors import UserInputError
+
+    result: dict[str, Any] = {"before": str(before), "after": str(after), "bootstrap": int(bootstrap),
+                              "sensors": {}, "skipped": []}
+    for sensor in sensors:
+        pb, pa = predictions_path(before, sensor), predictions_path(after, sensor)
+        if not pb.is_file() and not pa.is_file():
+            continue
+        if not (pb.is_file() and pa.is_file()):
+            result["skipped"].append(f"{sensor}: only the {'before' if pb.is_file() else 'after'} run has it")
+            continue
+        result["sensors"][sensor] = compare_sensor(read_predictions(pb, "--before"), read_predictions(pa, "--after"),
+                                                   bootstrap=bootstrap, rng_seed=rng_seed, sensor=sensor)
+    if not result["sensors"]:
+        for field, run in (("--before", before), ("--after", after)):
+            if not any(predictions_path(run, s).is_file() for s in sensors):
+                read_predictions(predictions_path(run, sensors[0]), field)   # raises, naming the folder
+        raise UserInputError(f"--before / --after: no visual sensor in common ({'; '.join(result['skipped'])})")
+    return result
+
+
+def format_comparison(result: dict[str, Any]) -> str:
+    """The comparison as a printed table, one block per sensor."""
+    lines = [f"after:  {result['after']}", f"before: {result['before']}"]
+    for sensor, res in result["sensors"].items():
+        lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({res['n_test_clips']} clips, "
+                     f"{res['n_test_crops']} crops), after - before, paired ({result['bootstrap']} clip resamples)")
+        for c in res["conditions"].values():
+            lines.append(f"  {c['label']:38s} {c['before']:.3f} -> {c['after']:.3f}  {100 * c['difference']:+5.1f} "
+                         f"[{100 * c['ci_low']:+5.1f}, {100 * c['ci_high']:+5.1f}] pt, MDE {100 * c['mde']:.1f}")
+    lines += [f"  skipped {s}" for s in result["skipped"]]
+    return "\n".join(lines)

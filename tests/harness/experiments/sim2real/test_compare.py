@@ -1,0 +1,122 @@
+"""Paired before / after comparison of two sim2real runs (`evids sim2real-compare`): known answers on
+hand-made predictions, the file round trip, bad input naming the field, and the CLI on miniature run
+folders (nothing written on failure; an existing output is not replaced)."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness.experiments.sim2real import compare
+from scenes.errors import UserInputError
+
+CONDS = ["a_real", "b_synthetic"]
+
+
+def _crops(n_clips: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """Every clip holds one crop of each of the two classes, so every bootstrap resample has both."""
+    y = np.tile([0, 1], n_clips)
+    clip = np.repeat([f"c{i}" for i in range(n_clips)], 2)
+    return y, clip
+
+
+def _run(folder: Path, y: np.ndarray, clip: np.ndarray, predicted: np.ndarray, sensor: str = "ir") -> Path:
+    folder.mkdir(parents=True)
+    (folder / "sim2real.json").write_text("{}")
+    compare.write_predictions(compare.predictions_path(folder, sensor), y, clip, CONDS, [0, 1], predicted)
+    return folder
+
+
+def test_paired_difference_known_answer_and_zero_for_the_same_predictions():
+    y, clip = _crops()
+    always_0 = np.zeros((2, len(y)), int)                     # balanced accuracy 0.5 on every resample
+    perfect = np.stack([y, y])                                # 1.0 on every resample
+    before = {"y": y, "clip": clip, "conditions": np.array(CONDS), "predicted": np.stack([perfect, always_0])}
+    after = {"y": y, "clip": clip, "conditions": np.array(CONDS), "predicted": np.stack([perfect, perfect])}
+    res = compare.compare_sensor(before, after, bootstrap=200, rng_seed=0)
+    b = res["conditions"]["b_synthetic"]
+    assert (b["before"], b["after"], b["difference"]) == (0.5, 1.0, 0.5)
+    assert b["ci_low"] == b["ci_high"] == 0.5 and b["mde"] == 0.0
+    a = res["conditions"]["a_real"]
+    assert a["difference"] == a["ci_low"] == a["ci_high"] == 0.0
+    assert res["n_test_crops"] == 12 and res["n_test_clips"] == 6
+
+
+def test_one_seed_better_half_the_difference_and_an_interval_that_needs_resampling():
+    """After: seed 0 perfect, seed 1 always class 0 -> mean 0.75; before always class 0 -> 0.5: +0.25. With one
+    clip's class-1 crop wrong in seed 0, the resamples that draw that clip more often move the estimate: the
+    interval opens and the MDE is positive."""
+    y, clip = _crops()
+    wrong_once = y.copy()
+    wrong_once[1] = 0
+    always_0 = np.zeros(len(y), int)
+    before = {"y": y, "clip": clip, "conditions": np.array(CONDS[1:]), "predicted": np.stack([[always_0, always_0]])}
+    after = {"y": y, "clip": clip, "conditions": np.array(CONDS[1:]), "predicted": np.stack([[y, always_0]])}
+    assert compare.compare_sensor(before, after, bootstrap=200, rng_seed=0)["conditions"]["b_synthetic"][
+        "difference"] == pytest.approx(0.25)
+    after["predicted"] = np.stack([[wrong_once, always_0]])
+    r = compare.compare_sensor(before, after, bootstrap=500, rng_seed=0)["conditions"]["b_synthetic"]
+    assert r["difference"] == pytest.approx(((1 + 5 / 6) / 2 + 0.5) / 2 - 0.5)   # seed 0: class-1 recall 5/6
+    assert r["ci_low"] < r["difference"] < r["ci_high"] and r["mde"] > 0
+
+
+def test_predictions_round_trip_and_byte_identical_rewrite(tmp_path):
+    y, clip = _crops()
+    pred = np.stack([np.stack([y, 1 - y]), np.stack([1 - y, y])])
+    path = compare.predictions_path(tmp_path, "visible")
+    compare.write_predictions(path, y, clip, CONDS, [0, 1], pred)
+    first = path.read_bytes()
+    compare.write_predictions(path, y, clip, CONDS, [0, 1], pred)
+    assert path.read_bytes() == first
+    got = compare.read_predictions(path)
+    assert np.array_equal(got["predicted"], pred) and list(got["conditions"]) == CONDS
+    assert np.array_equal(got["clip"], clip) and list(got["seeds"]) == [0, 1]
+    with pytest.raises(ValueError, match="shape"):
+        compare.write_predictions(path, y, clip, CONDS, [0], pred)
+
+
+def test_bad_input_names_the_field(tmp_path):
+    y, clip = _crops()
+    pred = np.stack([np.stack([y, y])] * 2)
+    before = _run(tmp_path / "before", y, clip, pred)
+    with pytest.raises(UserInputError, match="--after.*holds no predictions"):
+        compare.compare_runs(before, tmp_path / "nowhere")
+    other = _run(tmp_path / "other", y[:-2], clip[:-2], pred[:, :, :-2])
+    with pytest.raises(UserInputError, match="ir: the two runs' real evaluation crops differ"):
+        compare.compare_runs(before, other)
+    (tmp_path / "junk" / "predictions").mkdir(parents=True)
+    (tmp_path / "junk" / "predictions" / "ir.npz").write_bytes(b"not a zip")
+    with pytest.raises(UserInputError, match="--after.*not a predictions file"):
+        compare.compare_runs(before, tmp_path / "junk")
+    vis_only = _run(tmp_path / "vis", y, clip, pred, sensor="visible")
+    with pytest.raises(UserInputError, match="no visual sensor in common"):
+        compare.compare_runs(before, vis_only)
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", "from harness.cli import main; main()", *args], capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_cli_prints_writes_json_and_refuses_bad_input(tmp_path):
+    y, clip = _crops()
+    always_0 = np.zeros(len(y), int)
+    before = _run(tmp_path / "before", y, clip, np.stack([np.stack([y, y]), np.stack([always_0, always_0])]))
+    after = _run(tmp_path / "after", y, clip, np.stack([np.stack([y, y]), np.stack([y, y])]))
+    out = tmp_path / "cmp" / "b_vs_a.json"
+    proc = _cli("sim2real-compare", "--before", str(before), "--after", str(after), "--json", str(out),
+                "--bootstrap", "200")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "(b) synthetic only" in proc.stdout and "+50.0 [+50.0, +50.0] pt" in proc.stdout
+    saved = json.loads(out.read_text())
+    assert saved["sensors"]["ir"]["conditions"]["b_synthetic"]["difference"] == 0.5
+    again = _cli("sim2real-compare", "--before", str(before), "--after", str(after), "--json", str(out))
+    assert again.returncode == 2 and "--json" in again.stderr and json.loads(out.read_text()) == saved
+    (after / "sim2real.json").unlink()
+    missing = _cli("sim2real-compare", "--before", str(before), "--after", str(after), "--json",
+                   str(tmp_path / "new.json"))
+    assert missing.returncode == 2 and "--after" in missing.stderr and not (tmp_path / "new.json").exists()
