@@ -13,6 +13,7 @@ another synthetic set is not in it (that needs more draws, not more crops).
 from __future__ import annotations
 
 import io
+import zipfile
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -59,7 +60,7 @@ def read_predictions(path: Path, field: str = "run") -> dict[str, Any]:
     try:
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
         raise UserInputError(f"{field}: {str(path)!r} is not a predictions file ({exc})") from None
     if int(data.get("format_version", -1)) != FORMAT_VERSION:
         raise UserInputError(f"{field}: {str(path)!r} has predictions format {data.get('format_version')}, "

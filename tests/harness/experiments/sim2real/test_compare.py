@@ -92,6 +92,10 @@ def test_bad_input_names_the_field(tmp_path):
     (tmp_path / "junk" / "predictions" / "ir.npz").write_bytes(b"not a zip")
     with pytest.raises(UserInputError, match="--after.*not a predictions file"):
         compare.compare_runs(before, tmp_path / "junk")
+    good = compare.predictions_path(before, "ir").read_bytes()
+    (tmp_path / "junk" / "predictions" / "ir.npz").write_bytes(good[: len(good) // 2])   # a truncated zip
+    with pytest.raises(UserInputError, match="--after.*not a predictions file"):
+        compare.compare_runs(before, tmp_path / "junk")
     vis_only = _run(tmp_path / "vis", y, clip, pred, sensor="visible")
     with pytest.raises(UserInputError, match="no visual sensor in common"):
         compare.compare_runs(before, vis_only)
