@@ -243,7 +243,8 @@ def visual_track(samples: list, sensor: str, classes: list[str], *, seeds: list[
 def audio_track(real_clips: list, synthetic_clips: list, *, seeds: list[int], steps: int,
                 severities: tuple[float, ...], n_boot: int, seed: int, workers: int, progress: bool) -> dict[str, Any]:
     """Drone vs not-drone on 1 s log-mel windows: train a/b/c x softmax/evidential x seeds, score and sweep."""
-    from harness.experiments.sim2real.audio import _balance_weights, logmel_windows
+    from harness.experiments.sim2real.audio import logmel_windows
+    from harness.experiments.sim2real.classify import domain_balanced_weights
 
     cal = [c for c in real_clips if c.half == "calibration"]
     ev = [c for c in real_clips if c.half == "evaluation"]
@@ -262,10 +263,10 @@ def audio_track(real_clips: list, synthetic_clips: list, *, seeds: list[int], st
 
     xa, ya, _ = stack(cal)
     xb, yb, _ = stack(syn_train)
-    train = {"a_real": (xa, ya, _balance_weights(ya, np.zeros(len(ya)))),
-             "b_synthetic": (xb, yb, _balance_weights(yb, np.ones(len(yb)))),
+    train = {"a_real": (xa, ya, domain_balanced_weights(ya, np.zeros(len(ya)))),
+             "b_synthetic": (xb, yb, domain_balanced_weights(yb, np.ones(len(yb)))),
              "c_both": (np.concatenate([xa, xb]), np.concatenate([ya, yb]),
-                        _balance_weights(np.concatenate([ya, yb]), np.r_[np.zeros(len(ya)), np.ones(len(yb))]))}
+                        domain_balanced_weights(np.concatenate([ya, yb]), np.r_[np.zeros(len(ya)), np.ones(len(yb))]))}
     cells, labels, top = _cells("audio", severities)
     tests: dict[str, dict[str, np.ndarray]] = {}
     y, clip = {}, {}

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from harness.experiments.sim2real.classify import domain_balanced_weights
 from scenes.sampling import drone_kind, log_uniform, pick, target_size, uniform
 from simulator.seeding import rng_for
 
@@ -784,17 +785,6 @@ def _windows(clips: list[AudioClip], feats: dict[str, np.ndarray]) -> _Windows:
     return _Windows(np.concatenate(xs).astype(np.float32), np.array(ys), np.array(cs), np.array(ids))
 
 
-def _balance_weights(y: np.ndarray, domain: np.ndarray) -> np.ndarray:
-    """Sample weights: each domain's total weight equal, and inside it each label's equal; mean 1."""
-    w = np.zeros(y.size)
-    groups = [(d, lab) for d in np.unique(domain) for lab in (0, 1) if np.any((domain == d) & (y == lab))]
-    for d, lab in groups:
-        m = (domain == d) & (y == lab)
-        n_labels = len({other for dd, other in groups if dd == d})
-        w[m] = 1.0 / (m.sum() * n_labels * len(np.unique(domain)))
-    return w * y.size / w.sum()
-
-
 def _lr_features(x: np.ndarray) -> np.ndarray:
     return np.concatenate([x.mean(axis=2), x.std(axis=2)], axis=1)
 
@@ -1008,7 +998,7 @@ def run_audio_track(real_clips: list[AudioClip], synthetic_clips: list[AudioClip
                     "d_plus_few_shot_synthetic": (_concat(w_syn, w_few),
                                                   np.r_[np.ones(len(w_syn.y)), np.zeros(len(w_few.y))])}
             for cond, (train, domain) in sets.items():
-                w = _balance_weights(train.y, domain)
+                w = domain_balanced_weights(train.y, domain)
                 scores[cond]["logreg"].append(_fit_predict_lr(train, w, w_ev, seed))
                 scores[cond]["cnn"].append(_fit_predict_cnn(train, w, w_ev, seed, epochs))
                 say(f"seed {seed} {cond} done")

@@ -3,7 +3,10 @@
 Training conditions (docs/SIM2REAL.md), all evaluated on the real evaluation half:
 (a) real calibration half; (b) synthetic only; (c) synthetic + real calibration half; (d) few-shot
 real (``few_shot_fraction`` of the calibration clips per class, at least one); (d+) few-shot real +
-synthetic. Each condition is trained with every training seed; its figure is the mean over seeds of
+synthetic. The mixed conditions (c) and (d+) are domain-balanced like the audio track's: real and
+synthetic crops carry equal total weight in the loss, and inside each domain every class does, so a
+larger synthetic set does not drown the real crops (:func:`domain_balanced_weights`). Each condition
+is trained with every training seed; its figure is the mean over seeds of
 the balanced accuracy, and its 95 % interval comes from a clip bootstrap of the evaluation half
 (the same clip draws for every seed and condition, so ratios and differences are paired).
 """
@@ -22,9 +25,9 @@ CONDITIONS = ("a_real", "b_synthetic", "c_synthetic_plus_real", "d_few_shot", "d
 CONDITION_LABELS = {
     "a_real": "(a) real calibration half",
     "b_synthetic": "(b) synthetic only",
-    "c_synthetic_plus_real": "(c) synthetic + real calibration half",
+    "c_synthetic_plus_real": "(c) synthetic + real calibration half (domain-balanced)",
     "d_few_shot": "(d) few-shot real",
-    "d_plus_few_shot_synthetic": "(d+) few-shot real + synthetic",
+    "d_plus_few_shot_synthetic": "(d+) few-shot real + synthetic (domain-balanced)",
 }
 Z_MDE = 1.959964 + 0.841621        # two-sided 5 % test with 80 % power
 
@@ -42,6 +45,7 @@ class CropSet:
     x: np.ndarray          # (n, channels, px, px) float32 in [-0.5, 0.5]
     y: np.ndarray          # (n,) int
     clip: np.ndarray       # (n,) str: the clip/sequence id
+    domain: np.ndarray | None = None   # (n,) int: which set of a :func:`concat` a crop came from; None = one
 
     def images(self) -> np.ndarray:
         """The crops back as 8-bit images: (n, px, px) grey or (n, px, px, 3) colour (the inverse of
@@ -84,9 +88,31 @@ def crop_set(samples: Sequence[FrameSample], classes: Sequence[str], kind: str =
 
 
 def concat(*sets: CropSet) -> CropSet:
+    """The crops of ``sets`` in order, each set its own domain (0, 1, ...; a set that is itself a
+    concatenation keeps its domains, shifted past the earlier sets')."""
     sets = tuple(s for s in sets if len(s.y))
+    domains, offset = [], 0
+    for s in sets:
+        d = np.zeros(len(s.y), np.int64) if s.domain is None else np.asarray(s.domain, np.int64)
+        domains.append(d + offset)
+        offset += int(d.max()) + 1
     return CropSet(np.concatenate([s.x for s in sets]), np.concatenate([s.y for s in sets]),
-                   np.concatenate([s.clip for s in sets]))
+                   np.concatenate([s.clip for s in sets]), np.concatenate(domains) if domains else None)
+
+
+def domain_balanced_weights(y: np.ndarray, domain: np.ndarray) -> np.ndarray:
+    """Per-sample loss weights: every domain's total weight equal, and inside a domain every label
+    present in it equal; mean 1. One domain: plain class balancing."""
+    y, domain = np.asarray(y), np.asarray(domain)
+    w = np.zeros(y.size)
+    domains = np.unique(domain)
+    for d in domains:
+        in_d = domain == d
+        labels = np.unique(y[in_d])
+        for lab in labels:
+            m = in_d & (y == lab)
+            w[m] = 1.0 / (m.sum() * labels.size * domains.size)
+    return w * y.size / w.sum()
 
 
 def few_shot_clips(samples: Sequence[FrameSample], fraction: float, rng: np.random.Generator) -> set[str]:
@@ -117,7 +143,8 @@ def _net(in_channels: int, n_classes: int):
 
 
 def train_cnn(train: CropSet, n_classes: int, *, seed: int, steps: int, batch_size: int, learning_rate: float):
-    """A small CNN trained with class-balanced cross-entropy and random flips for a fixed number of
+    """A small CNN trained with class-balanced cross-entropy (domain- and class-balanced when ``train``
+    holds more than one domain: :func:`domain_balanced_weights`) and random flips for a fixed number of
     optimiser ``steps`` (every condition gets the same number, whatever its size: counted in epochs, a
     few-shot set of 200 crops got 24 steps and the (d+)-(d) gain measured under-training); the
     batches cycle through fresh permutations. Deterministic per seed."""
@@ -129,7 +156,18 @@ def train_cnn(train: CropSet, n_classes: int, *, seed: int, steps: int, batch_si
     counts = np.bincount(train.y, minlength=n_classes).astype(np.float64)
     weights = torch.tensor(np.where(counts > 0, counts.sum() / np.maximum(counts, 1) / n_classes, 0.0),
                            dtype=torch.float32)
-    loss_fn = torch.nn.CrossEntropyLoss(weight=weights)
+    class_loss = torch.nn.CrossEntropyLoss(weight=weights)
+    per_sample = torch.nn.CrossEntropyLoss(reduction="none")
+    mixed = train.domain is not None and np.unique(train.domain).size > 1
+    sample_w = torch.tensor(domain_balanced_weights(train.y, train.domain) if train.domain is not None and mixed
+                            else np.ones(len(train.y)), dtype=torch.float32)
+
+    def batch_loss(logits, target, idx):
+        if not mixed:
+            return class_loss(logits, target)
+        w = sample_w[idx]      # the weighted mean over the batch, as CrossEntropyLoss(weight=)'s is
+        return (per_sample(logits, target) * w).sum() / w.sum()
+
     opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
     x, y = torch.from_numpy(train.x), torch.from_numpy(train.y)
     n = len(y)
@@ -147,7 +185,7 @@ def train_cnn(train: CropSet, n_classes: int, *, seed: int, steps: int, batch_si
         flip = torch.rand(len(idx), generator=gen) < 0.5
         xb = torch.where(flip[:, None, None, None], xb.flip(3), xb)
         opt.zero_grad()
-        loss_fn(net(xb), y[idx]).backward()
+        batch_loss(net(xb), y[idx], idx).backward()
         opt.step()
         sched.step()
     net.eval()

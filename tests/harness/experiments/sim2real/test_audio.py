@@ -72,15 +72,6 @@ def test_roc_auc_and_balanced_accuracy_by_hand():
     assert np.isnan(A.roc_auc(np.ones(3), np.arange(3.0)))
 
 
-def test_balance_weights_equalise_domains_and_labels():
-    y = np.array([1, 1, 1, 0, 1, 0, 0, 0, 0])
-    d = np.array([0, 0, 0, 0, 1, 1, 1, 1, 1])
-    w = A._balance_weights(y, d)
-    for dom in (0, 1):
-        for lab in (0, 1):
-            assert w[(d == dom) & (y == lab)].sum() == pytest.approx(w.sum() / 4)
-
-
 def test_synthetic_clips_are_deterministic_per_seed_and_labelled():
     cfg = {"duration_s": 1.0, "drone_kinds": ["quadcopter"], "drone_range_m": [[10.0, 20.0]]}
     a = A.synthetic_audio_clips(cfg, 3, 1)

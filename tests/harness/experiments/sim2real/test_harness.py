@@ -330,3 +330,48 @@ def test_quick_run_keeps_its_predictions_for_paired_comparisons(quick_run, tmp_p
     assert set(res["sensors"]) == {"ir", "visible"}
     assert all(c["difference"] == c["ci_low"] == c["ci_high"] == 0.0
                for s in res["sensors"].values() for c in s["conditions"].values())
+
+
+def test_domain_balanced_weights_known_answer():
+    """Two domains (3 + 5 crops): each domain half the total, inside it each present label equal."""
+    y = np.array([0, 0, 2, 0, 1, 1, 1, 2])
+    d = np.array([0, 0, 0, 1, 1, 1, 1, 1])
+    w = classify.domain_balanced_weights(y, d)
+    # domain 0: labels {0, 2} -> 1/4 each of the total; domain 1: labels {0, 1, 2} -> 1/6 each; mean 1
+    expected = np.array([1 / 8, 1 / 8, 1 / 4, 1 / 6, 1 / 18, 1 / 18, 1 / 18, 1 / 6]) * 8
+    np.testing.assert_allclose(w, expected)
+    assert w.mean() == pytest.approx(1.0)
+    one = classify.domain_balanced_weights(np.array([0, 0, 0, 1]), np.zeros(4))      # one domain: class balance
+    np.testing.assert_allclose(one, [2 / 3, 2 / 3, 2 / 3, 2.0])
+
+
+def test_concat_gives_each_set_its_own_domain_and_keeps_nested_ones():
+    mk = lambda n, tag: classify.CropSet(np.zeros((n, 1, 2, 2), np.float32), np.zeros(n, np.int64),  # noqa: E731
+                                         np.array([tag] * n))
+    ab = classify.concat(mk(2, "a"), mk(0, "empty"), mk(1, "b"))
+    assert ab.domain.tolist() == [0, 0, 1]                 # an empty set takes no domain number
+    assert classify.concat(ab, mk(2, "c")).domain.tolist() == [0, 0, 1, 2, 2]
+
+
+def test_mixed_training_weights_the_small_real_set_like_the_large_synthetic_one():
+    """800 synthetic crops whose brightness rule is the reverse of the 40 real crops' (the synthetic ones
+    also carry a cue of their own, a bright left half). Pooled with class balance only, the network learns
+    the synthetic rule and gets every real crop wrong; domain-balanced, the real crops weigh as much as
+    the synthetic ones and the real rule is learnt."""
+    rng = np.random.default_rng(0)
+
+    def crops(n: int, sign: float, cue: float, tag: str) -> classify.CropSet:
+        y = rng.integers(0, 2, n)
+        level = np.where(y == 1, sign * 0.15, -sign * 0.15).astype(np.float32)[:, None, None, None]
+        x = rng.normal(0, 0.1, (n, 1, 16, 16)).astype(np.float32) + level
+        x[:, :, :, :8] += np.where(y == 1, cue, -cue).astype(np.float32)[:, None, None, None]
+        return classify.CropSet(x, y, np.array([f"{tag}{i}" for i in range(n)]))
+
+    real, synthetic, test = crops(40, 1.0, 0.0, "r"), crops(800, -1.0, 0.2, "s"), crops(300, 1.0, 0.0, "t")
+    mixed = classify.concat(synthetic, real)
+    pooled = classify.CropSet(mixed.x, mixed.y, mixed.clip)              # the same crops, one domain
+    acc = {}
+    for name, train in (("mixed", mixed), ("pooled", pooled)):
+        net = classify.train_cnn(train, 2, seed=0, steps=40, batch_size=64, learning_rate=2e-3)
+        acc[name] = classify.balanced_accuracy(test.y, classify.predict(net, test.x).argmax(1))
+    assert acc["mixed"] > 0.9 and acc["pooled"] < 0.1, acc
