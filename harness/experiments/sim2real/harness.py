@@ -16,12 +16,9 @@ from typing import Any, Callable
 import numpy as np
 
 from harness.experiments.sim2real import classify
-from harness.experiments.sim2real.config import Sim2RealConfig, load_config
+from harness.experiments.sim2real.config import VISUAL_SENSORS, Sim2RealConfig, load_config
 from harness.experiments.sim2real.samples import STAT_NAMES, ClipSummary, FrameSample
 from simulator.files import write_atomic
-from simulator.formats.svanstrom import Sensor
-
-VISUAL_SENSORS: tuple[Sensor, ...] = ("ir", "visible")
 
 
 def _real_job(clip, params: dict) -> tuple[list[FrameSample], ClipSummary | None, str | None]:
@@ -366,6 +363,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                                            sensor, seeds=seeds, steps=vis.quick_detector_steps if quick
                                            else vis.detector_steps,
                                            folder=out / "detector" / sensor, workers=vis.workers,
+                                           downscale=vis.detector_downscale.get(sensor, 1),
                                            label=f"{sensor}: detectors" if progress else None)
         else:
             detector = {"note": "off (visual.detector_frames_per_clip: 0)"}

@@ -375,3 +375,58 @@ def test_mixed_training_weights_the_small_real_set_like_the_large_synthetic_one(
         net = classify.train_cnn(train, 2, seed=0, steps=40, batch_size=64, learning_rate=2e-3)
         acc[name] = classify.balanced_accuracy(test.y, classify.predict(net, test.x).argmax(1))
     assert acc["mixed"] > 0.9 and acc["pooled"] < 0.1, acc
+
+
+def test_shrink_averages_frames_and_scales_boxes():
+    from harness.experiments.sim2real import detect
+    from harness.experiments.sim2real.samples import ClipSummary
+
+    frame = np.zeros((4, 6), np.uint8)
+    frame[0:2, 2:4] = 200                                   # one 2x2 block: a single 100 %-covered pixel after /2
+    frame[2:4, 4:6] = [[100, 0], [0, 100]]                  # a checker: its mean, 50, after /2
+    clip = ClipSummary("real", "ir", "DRONE", "c1", "calibration", 1, 0.0,
+                       frames=[(0, frame, (2.0, 0.0, 2.0, 2.0)), (1, frame, None)])
+    small = detect.shrink(clip, 2)
+    assert small.frames[0][1].tolist() == [[0, 200, 0], [0, 0, 50]]
+    assert small.frames[0][2] == (1.0, 0.0, 1.0, 1.0) and small.frames[1][2] is None
+    assert clip.frames[0][1].shape == (4, 6)                # the input is not touched
+    assert detect.shrink(clip, 1) is clip
+
+
+def test_detections_of_shrunk_frames_come_back_in_recorded_pixels_against_recorded_labels():
+    import torch
+
+    from evids.models.detector import STRIDE, DetectorOutput
+    from harness.experiments.sim2real import detect
+    from harness.experiments.sim2real.samples import ClipSummary
+
+    def model(x):       # one peak at cell (2, 3), box 6 x 4 px centred on the cell
+        b, _, h, w = x.shape
+        prob = torch.zeros(b, h // STRIDE, w // STRIDE)
+        prob[:, 2, 3] = 0.9
+        box = torch.zeros(b, 4, h // STRIDE, w // STRIDE)
+        box[:, 2], box[:, 3] = float(np.log(6.0)), float(np.log(4.0))
+        return DetectorOutput(prob=prob, box=box)
+
+    frame = np.full((64, 96), 30, np.uint8)
+    clip = ClipSummary("real", "ir", "DRONE", "c1", "evaluation", 1, 0.0, frames=[(0, frame, (10.0, 12.0, 8.0, 6.0))])
+    native = detect.detect(model, [detect.to_sequence(clip, 0)], "ir")[0][0]["boxes"]
+    shrunk = detect.detect(model, [detect.to_sequence(detect.shrink(clip, 2), 0)], "ir", downscale=2)[0][0]["boxes"]
+    np.testing.assert_allclose(native, [[3.5 * STRIDE - 3, 2.5 * STRIDE - 2, 6, 4]])
+    np.testing.assert_allclose(shrunk, native * 2)
+    gt, ids = detect.coco_ground_truth([clip])
+    assert (gt["images"][0]["width"], gt["images"][0]["height"]) == (96, 64)
+    assert gt["annotations"][0]["bbox"] == [10.0, 12.0, 8.0, 6.0] and ids == {(0, 0): 1}
+
+
+def test_detector_downscale_is_checked_naming_the_field():
+    import pydantic
+
+    from harness.experiments.sim2real.config import VisualProtocol
+
+    base = {"classes": {"DRONE": {"generation": {}, "sequences": 1}, "BIRD": {"generation": {}, "sequences": 1}}}
+    assert VisualProtocol.model_validate(base).detector_downscale == {"ir": 1, "visible": 2}
+    for bad, word in (({"radar": 2}, "radar"), ({"visible": 0}, "1-8")):
+        with pytest.raises(pydantic.ValidationError, match=word) as err:
+            VisualProtocol.model_validate({**base, "detector_downscale": bad})
+        assert "detector_downscale" in str(err.value)
