@@ -40,6 +40,12 @@ def balanced_accuracy(y: np.ndarray, pred: np.ndarray) -> float:
     return float(np.mean([np.mean(pred[y == c] == c) for c in classes]))
 
 
+def mean_balanced_accuracy(y: np.ndarray, predicted: np.ndarray) -> float:
+    """The mean over seeds of the balanced accuracy of ``predicted`` (n_seeds, n) against ``y``: a
+    condition's figure."""
+    return float(np.mean([balanced_accuracy(y, p) for p in predicted]))
+
+
 @dataclass
 class CropSet:
     x: np.ndarray          # (n, channels, px, px) float32 in [-0.5, 0.5]
@@ -263,7 +269,7 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
         write_predictions(predictions, test.y, test.clip, names, seeds, stacked.transpose(2, 0, 1))
 
     def mean_balacc(k: int):
-        return lambda y, p: float(np.mean([balanced_accuracy(y, p[:, s, k]) for s in range(p.shape[1])]))
+        return lambda y, p: mean_balanced_accuracy(y, p[:, :, k].T)
 
     # rows = test crops; arrays (n_test, n_seeds, n_conditions)
     data = stacked.transpose(1, 0, 2)

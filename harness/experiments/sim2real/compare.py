@@ -20,7 +20,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from evids.metrics.bootstrap import clustered_bootstrap
-from harness.experiments.sim2real.classify import CONDITION_LABELS, Z_MDE, balanced_accuracy
+from harness.experiments.sim2real.classify import CONDITION_LABELS, Z_MDE, mean_balanced_accuracy
 
 PREDICTIONS_DIR = "predictions"
 FORMAT_VERSION = 1
@@ -68,10 +68,6 @@ def read_predictions(path: Path, field: str = "run") -> dict[str, Any]:
     return data
 
 
-def _mean_balacc(y: np.ndarray, predicted: np.ndarray) -> float:
-    return float(np.mean([balanced_accuracy(y, p) for p in predicted]))
-
-
 def compare_sensor(before: dict[str, Any], after: dict[str, Any], *, bootstrap: int, rng_seed: int,
                    sensor: str = "") -> dict[str, Any]:
     """Paired differences after - before per condition both runs have (see the module docstring)."""
@@ -91,12 +87,13 @@ def compare_sensor(before: dict[str, Any], after: dict[str, Any], *, bootstrap: 
         k = pb.shape[0]
 
         def diff(yy: np.ndarray, d: np.ndarray, k: int = k) -> float:
-            return _mean_balacc(yy, d[:, k:].T) - _mean_balacc(yy, d[:, :k].T)
+            return mean_balanced_accuracy(yy, d[:, k:].T) - mean_balanced_accuracy(yy, d[:, :k].T)
 
         res = clustered_bootstrap(diff, y, data, clusters=clips, rng=rng_seed, n_resamples=bootstrap)
         finite = res.samples[np.isfinite(res.samples)]
         out["conditions"][name] = {
-            "label": CONDITION_LABELS.get(name, name), "before": _mean_balacc(y, pb), "after": _mean_balacc(y, pa),
+            "label": CONDITION_LABELS.get(name, name),
+            "before": mean_balanced_accuracy(y, pb), "after": mean_balanced_accuracy(y, pa),
             "difference": res.estimate, "ci_low": res.ci_low, "ci_high": res.ci_high,
             "mde": float(Z_MDE * finite.std(ddof=1)) if finite.size > 2 else float("nan")}
     return out
