@@ -21,6 +21,7 @@ import numpy as np
 
 from evids.metrics.bootstrap import clustered_bootstrap
 from harness.experiments.sim2real.classify import CONDITION_LABELS, Z_MDE, mean_balanced_accuracy
+from harness.experiments.sim2real.config import VISUAL_SENSORS
 
 PREDICTIONS_DIR = "predictions"
 FORMAT_VERSION = 1
@@ -99,7 +100,7 @@ def compare_sensor(before: dict[str, Any], after: dict[str, Any], *, bootstrap: 
     return out
 
 
-def compare_runs(before: Path, after: Path, *, sensors: Sequence[str] = ("ir", "visible"), bootstrap: int = 1000,
+def compare_runs(before: Path, after: Path, *, sensors: Sequence[str] = VISUAL_SENSORS, bootstrap: int = 1000,
                  rng_seed: int = 0) -> dict[str, Any]:
     """Every visual sensor both runs measured: :func:`compare_sensor`. A sensor only one run has is listed
     under ``skipped``; none in common is a ``UserInputError``."""

@@ -6,11 +6,17 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from simulator.formats.svanstrom import VIDEO_CLASSES, Sensor
+from simulator.formats.svanstrom import SENSORS, VIDEO_CLASSES, Sensor
 
 VISUAL_SENSORS: tuple[Sensor, ...] = ("ir", "visible")
-SENSORS = (*VISUAL_SENSORS, "audio")
 DEFAULT_CONFIG = Path(__file__).resolve().parents[3] / "examples" / "sim2real_svanstrom.yaml"
+
+
+def _reject_unknown(keys, known, nouns: str, expected: str) -> None:
+    """A ``ValueError`` listing the ``keys`` not in ``known`` (pydantic names the field)."""
+    bad = [k for k in keys if k not in known]
+    if bad:
+        raise ValueError(f"unknown {nouns} {bad}; {expected}")
 
 
 class _Model(BaseModel):
@@ -54,9 +60,7 @@ class VisualProtocol(_Model):
     @field_validator("detector_downscale")
     @classmethod
     def _downscale(cls, value: dict[str, int]) -> dict[str, int]:
-        bad = [k for k in value if k not in VISUAL_SENSORS]
-        if bad:
-            raise ValueError(f"unknown sensor(s) {bad}; expected {', '.join(VISUAL_SENSORS)}")
+        _reject_unknown(value, VISUAL_SENSORS, "sensor(s)", f"expected {', '.join(VISUAL_SENSORS)}")
         low = {k: v for k, v in value.items() if not 1 <= v <= 8}
         if low:
             raise ValueError(f"factors must be 1-8, got {low}")
@@ -65,9 +69,7 @@ class VisualProtocol(_Model):
     @field_validator("classes")
     @classmethod
     def _known(cls, value: dict[str, SyntheticClass]) -> dict[str, SyntheticClass]:
-        bad = [k for k in value if k not in VIDEO_CLASSES]
-        if bad:
-            raise ValueError(f"unknown class(es) {bad}; the benchmark's video classes are {list(VIDEO_CLASSES)}")
+        _reject_unknown(value, VIDEO_CLASSES, "class(es)", f"the benchmark's video classes are {list(VIDEO_CLASSES)}")
         return value
 
 
@@ -94,9 +96,7 @@ class Sim2RealConfig(_Model):
     @field_validator("sensors")
     @classmethod
     def _sensors(cls, value: list[str]) -> list[str]:
-        bad = [s for s in value if s not in SENSORS]
-        if bad:
-            raise ValueError(f"unknown sensor(s) {bad}; expected {', '.join(SENSORS)}")
+        _reject_unknown(value, SENSORS, "sensor(s)", f"expected {', '.join(SENSORS)}")
         return value
 
 
