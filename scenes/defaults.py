@@ -41,6 +41,17 @@ _OFFSETS_K: dict[str, dict[str, float]] = {
     "helicopter": {"fuselage": 3.0, "tail": 1.0, "engine": 35.0, "exhaust": 200.0, "prop": 0.5, "body": 2.0},
 }
 
+#: the parts of each kind whose visible colour is its paint (a generation config's ``paint_reflectance``
+#: redraws them): the shell a camera sees, not the motors, rotors, lenses or engines
+PAINTED_ROLES: dict[str, tuple[str, ...]] = {
+    "quadcopter": ("body", "arm", "battery"),
+    "hexacopter": ("body", "arm", "battery"),
+    "fixed_wing": ("fuselage", "wing", "tail", "body"),
+    "bird": ("body", "head", "wing", "feather"),
+    "airliner": ("fuselage", "wing", "tail"),
+    "helicopter": ("fuselage", "tail", "body"),
+}
+
 _MATERIAL_OVERRIDES: dict[str, dict[str, Material]] = {
     "bird": {
         "body": Material(rgb_reflectance=(0.25, 0.22, 0.18), emissivity=0.95),

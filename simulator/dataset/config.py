@@ -41,6 +41,7 @@ _S_PRESET, _S_SEED, _S_TARGET, _S_TRAJ, _S_SUN, _S_AIR, _S_PARTS, _S_CAMERA, _S_
 _S_BINS, _S_FOV, _S_MODE, _S_CLOUDS, _S_ELEV = range(10, 15)   # scene-realism fields (issue 23)
 _S_FRAME_WARM = 15                                              # multirotor frame warming (issue 23)
 _S_SENSOR = 16                                                  # camera-model settings (issue 23)
+_S_PAINT = 17                                                   # the primary target's paint (issue 23)
 _SPLIT_TAG = 1000
 
 
@@ -200,6 +201,11 @@ class Randomisation(_Model):
         "flying multirotors only (quadcopter, hexacopter): one draw per target (K, >= 0) added to the body and "
         "arm offsets, the heat the ESCs on the arms and the power board and battery in the centre plate give "
         "the frame in flight (docs/SIM2REAL.md); null: the kind's defaults"))
+    paint_reflectance: Range | None = Field(default=None, description=(
+        "grey visible reflectance (linear albedo, 0-1) of the primary target's painted parts "
+        "(scenes.defaults.PAINTED_ROLES: a multirotor's body, arms and battery cover, a helicopter's fuselage "
+        "and tail, ...), one draw per sequence; their LWIR emissivity is kept, so the thermal band is unchanged; "
+        "null: the kind's default materials"))
     camera_yaw_deg: Range | None = Field(default=None, description="thermal-to-RGB yaw offset")
     camera_pitch_deg: Range | None = Field(default=None, description="thermal-to-RGB pitch offset")
     camera_translation_m: Range | None = Field(default=None, description="thermal-to-RGB baseline along x")
@@ -236,7 +242,7 @@ class Randomisation(_Model):
 
     #: fields added after the dataset format froze, left out of the dump while unset: a config without
     #: them keeps its manifest bytes and ``dataset_id`` (an older dataset folder resumes)
-    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("multirotor_frame_warming_k", "sensor")
+    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("multirotor_frame_warming_k", "sensor", "paint_reflectance")
 
     @model_serializer(mode="wrap")
     def _dump(self, handler):
@@ -274,6 +280,10 @@ class Randomisation(_Model):
                 0.0 <= self.multirotor_frame_warming_k.min and self.multirotor_frame_warming_k.max <= 60.0):
             raise ValueError(f"multirotor_frame_warming_k must lie in [0, 60] K, got "
                              f"[{self.multirotor_frame_warming_k.min}, {self.multirotor_frame_warming_k.max}]")
+        if self.paint_reflectance is not None and not (
+                0.0 <= self.paint_reflectance.min and self.paint_reflectance.max <= 1.0):
+            raise ValueError(f"paint_reflectance must lie in [0, 1], got "
+                             f"[{self.paint_reflectance.min}, {self.paint_reflectance.max}]")
         for name in ("speed_mps", "target_px", "target_size_scale"):
             value = getattr(self, name)
             if value is not None and value.min <= 0:
@@ -482,6 +492,8 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
         _draw_part_offsets(r.part_temperature_offset_k, targets, stream(_S_PARTS))
     if r.multirotor_frame_warming_k is not None:
         _draw_frame_warming(r.multirotor_frame_warming_k, targets, stream(_S_FRAME_WARM))
+    if r.paint_reflectance is not None:
+        _draw_paint(r.paint_reflectance, targets[p], stream(_S_PAINT))
     _draw_camera_offset(r, rig["thermal_offset"], stream(_S_CAMERA))
     _draw_distractors(r, targets, targets[p], rig, base, cam_pos, duration, stream(_S_DISTRACT))
     if r.sensor is not None:
@@ -640,6 +652,20 @@ def _draw_frame_warming(warming: Range, targets: list[dict], rng: np.random.Gene
             for role in FRAME_WARMING_ROLES:
                 end[role] = round(offset_for(probe, role, end=True) + delta, 4)
             thermal["offsets_end_k"] = end
+
+
+def _draw_paint(paint: Range, target: dict, rng: np.random.Generator) -> None:
+    """One grey reflectance for the primary target's painted parts (``PAINTED_ROLES`` of its kind),
+    each part keeping its emissivity (the kind's default or the scenario's override)."""
+    from scenes.defaults import PAINTED_ROLES, material_for
+
+    albedo = round(paint.draw(rng), 4)
+    probe = Target.model_validate(target)
+    materials = dict(target["materials"])
+    for role in PAINTED_ROLES[target["kind"]]:
+        materials[role] = {"rgb_reflectance": (albedo, albedo, albedo),
+                           "emissivity": material_for(probe, role).emissivity}
+    target["materials"] = materials
 
 
 def _draw_camera_offset(r: Randomisation, off: dict, rng: np.random.Generator) -> None:

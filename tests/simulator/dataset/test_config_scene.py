@@ -231,3 +231,29 @@ def test_omit_when_unset_drops_only_the_named_keys_that_are_none():
     data = {"a": None, "b": None, "c": 1}
     assert omit_when_unset(data, ("a", "c", "missing")) == {"b": None, "c": 1}
     assert omit_when_unset([1, None], ("a",)) == [1, None]                         # not a dict: untouched
+
+
+def test_paint_reflectance_recolours_only_the_primary_targets_painted_parts():
+    from scenes.defaults import PAINTED_ROLES, material_for
+
+    plain, painted = _cfg(), _cfg(paint_reflectance=[0.5, 0.8])
+    for i in range(4):
+        a, b = randomised_scenario(plain, 3, i)[1], randomised_scenario(painted, 3, i)[1]
+        drone_a, drone_b = a.targets[0], b.targets[0]
+        albedos = {material_for(drone_b, role).rgb_reflectance for role in PAINTED_ROLES[drone_b.kind]}
+        assert len(albedos) == 1
+        (grey,) = albedos
+        assert grey[0] == grey[1] == grey[2] and 0.5 <= grey[0] <= 0.8
+        for role in PAINTED_ROLES[drone_b.kind]:   # LWIR untouched
+            assert material_for(drone_b, role).emissivity == material_for(drone_a, role).emissivity
+        for role in ("motor", "prop", "camera"):
+            assert material_for(drone_b, role) == material_for(drone_a, role)
+        assert a.targets[1:] == b.targets[1:]          # distractors keep their colours
+        assert a.model_copy(update={"targets": b.targets}) == b
+        assert drone_a.model_copy(update={"materials": drone_b.materials}) == drone_b
+    assert randomised_scenario(painted, 3, 1)[1] == randomised_scenario(painted, 3, 1)[1]
+    assert "paint_reflectance" not in plain.model_dump(mode="json")["randomise"]
+    assert load_generation_config(painted.model_dump(mode="json")) == painted
+    for bad in ([-0.1, 0.5], [0.2, 1.5]):
+        with pytest.raises(UserInputError, match="paint_reflectance"):
+            _cfg(paint_reflectance=bad)

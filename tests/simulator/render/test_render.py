@@ -196,3 +196,26 @@ def test_multirotor_frame_warming_grows_the_drones_hot_area():
     warm, _ = hot_pixels(10.0)
     assert np.array_equal(unwarmed, plain) and zero == base        # a zero offset renders the same image
     assert base[0] >= 2 and warm[0] >= base[0] + 2 and warm[1] >= base[1] + 20.0
+
+
+def test_paint_reflectance_brightens_the_drone_in_rgb_and_leaves_the_thermal_frame_alone():
+    """A white-painted quadcopter (``paint_reflectance`` 0.8) against the default near-black one: the
+    drone's RGB pixels get brighter, the radiometric thermal frame is the same array (emissivity kept)."""
+    from simulator.dataset.config import load_generation_config, randomised_scenario
+
+    def frame(paint):
+        randomise = {"range_m": [25, 25], "trajectory_kinds": ["hover"], "hfov_deg": [24, 24],
+                     "air_temperature_k": [285, 285], "target_size_scale": [1.5, 1.5]}
+        if paint is not None:
+            randomise["paint_reflectance"] = [paint, paint]
+        cfg = load_generation_config({"name": "t", "mixture": [{"scenario": "clear_day_quad"}], "frames": 2,
+                                      "image_size": [320, 256], "spp": 2, "randomise": randomise})
+        _, out = _render_frames(randomised_scenario(cfg, 0, 0)[1], 0, [0], 2)
+        return out[0]
+
+    dark, white = frame(None), frame(0.8)
+    assert np.array_equal(dark.thermal_kelvin, white.thermal_kelvin)
+    drone = (dark.mask_rgb == 1) & (white.mask_rgb == 1)
+    assert drone.sum() >= 10
+    lum = lambda f: (f.rgb_linear[drone] @ np.array([0.2126, 0.7152, 0.0722])).mean()
+    assert lum(white) > 3.0 * lum(dark)
