@@ -463,7 +463,8 @@ def randomised_scenario(config: GenerationConfig, seed: int, index: int,
 
     Each step draws from its own sub-stream ``rng_for(seed, "generation", index, _S_...)``, in this
     order: primary target (kind, size), track (range, path, camera), sun, clouds, air, part
-    temperatures, multirotor frame warming, thermal-camera offset, distractors, camera-model settings."""
+    temperatures, multirotor frame warming, the primary target's paint, thermal-camera offset, distractors,
+    camera-model settings."""
     source = choose_source(config, seed, index)
     base = _load_source(source, base_dir)
     r = config.randomise
