@@ -217,5 +217,7 @@ def test_paint_reflectance_brightens_the_drone_in_rgb_and_leaves_the_thermal_fra
     assert np.array_equal(dark.thermal_kelvin, white.thermal_kelvin)
     drone = (dark.mask_rgb == 1) & (white.mask_rgb == 1)
     assert drone.sum() >= 10
-    lum = lambda f: (f.rgb_linear[drone] @ np.array([0.2126, 0.7152, 0.0722])).mean()
-    assert lum(white) > 3.0 * lum(dark)
+    def luminance(f):
+        return (f.rgb_linear[drone] @ np.array([0.2126, 0.7152, 0.0722])).mean()
+
+    assert luminance(white) > 3.0 * luminance(dark)
