@@ -168,22 +168,27 @@ def test_a_cached_sky_bake_renders_the_same_bytes_as_a_fresh_one(tmp_path):
     assert len(rr._SKY_BAKES) == 2 and len(keys) == 1                         # no clouds: the seed does not count
 
 
+def _benchmark_quad_frame(range_m, randomise_extra):
+    """Frame 0 of a hovering quadcopter ``range_m`` away on the benchmark's 24-deg, 320 x 256 cameras, drawn by a
+    generation config with ``randomise_extra`` on top of fixed range, air temperature and size."""
+    from simulator.dataset.config import load_generation_config, randomised_scenario
+
+    randomise = {"range_m": [range_m, range_m], "trajectory_kinds": ["hover"], "hfov_deg": [24, 24],
+                 "air_temperature_k": [285, 285], "target_size_scale": [1.5, 1.5], **randomise_extra}
+    cfg = load_generation_config({"name": "t", "mixture": [{"scenario": "clear_day_quad"}], "frames": 2,
+                                  "image_size": [320, 256], "spp": 2, "randomise": randomise})
+    _, out = _render_frames(randomised_scenario(cfg, 0, 0)[1], 0, [0], 2)
+    return out[0]
+
+
 def test_multirotor_frame_warming_grows_the_drones_hot_area():
     """A quadcopter 40 m away on a 24-deg, 320-px thermal camera (the benchmark's geometry): with
     ``multirotor_frame_warming_k`` the body and arms join the motors and battery far above the sky, so
     more pixels stand out and the summed excess grows; a zero warming renders the same image as none."""
-    from simulator.dataset.config import load_generation_config, randomised_scenario
-
     def hot_pixels(warming):
-        randomise = {"range_m": [40, 40], "trajectory_kinds": ["hover"], "hfov_deg": [24, 24],
-                     "air_temperature_k": [285, 285], "target_size_scale": [1.5, 1.5]}
-        if warming is not None:
-            randomise["multirotor_frame_warming_k"] = [warming, warming]
-        cfg = load_generation_config({"name": "t", "mixture": [{"scenario": "clear_day_quad"}], "frames": 2,
-                                      "image_size": [320, 256], "spp": 2, "randomise": randomise})
-        scenario = randomised_scenario(cfg, 0, 0)[1]
-        _, out = _render_frames(scenario, 0, [0], 2)
-        kelvin, mask = out[0].thermal_kelvin, out[0].mask_thermal
+        extra = {} if warming is None else {"multirotor_frame_warming_k": [warming, warming]}
+        out = _benchmark_quad_frame(40.0, extra)
+        kelvin, mask = out.thermal_kelvin, out.mask_thermal
         ys, xs = np.nonzero(mask == 1)
         y0, x0 = max(0, ys.min() - 8), max(0, xs.min() - 8)
         window, inside = kelvin[y0:ys.max() + 9, x0:xs.max() + 9], mask[y0:ys.max() + 9, x0:xs.max() + 9] == 1
@@ -201,19 +206,8 @@ def test_multirotor_frame_warming_grows_the_drones_hot_area():
 def test_paint_reflectance_brightens_the_drone_in_rgb_and_leaves_the_thermal_frame_alone():
     """A white-painted quadcopter (``paint_reflectance`` 0.8) against the default near-black one: the
     drone's RGB pixels get brighter, the radiometric thermal frame is the same array (emissivity kept)."""
-    from simulator.dataset.config import load_generation_config, randomised_scenario
-
-    def frame(paint):
-        randomise = {"range_m": [25, 25], "trajectory_kinds": ["hover"], "hfov_deg": [24, 24],
-                     "air_temperature_k": [285, 285], "target_size_scale": [1.5, 1.5]}
-        if paint is not None:
-            randomise["paint_reflectance"] = [paint, paint]
-        cfg = load_generation_config({"name": "t", "mixture": [{"scenario": "clear_day_quad"}], "frames": 2,
-                                      "image_size": [320, 256], "spp": 2, "randomise": randomise})
-        _, out = _render_frames(randomised_scenario(cfg, 0, 0)[1], 0, [0], 2)
-        return out[0]
-
-    dark, white = frame(None), frame(0.8)
+    dark = _benchmark_quad_frame(25.0, {})
+    white = _benchmark_quad_frame(25.0, {"paint_reflectance": [0.8, 0.8]})
     assert np.array_equal(dark.thermal_kelvin, white.thermal_kelvin)
     drone = (dark.mask_rgb == 1) & (white.mask_rgb == 1)
     assert drone.sum() >= 10
