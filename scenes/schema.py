@@ -301,6 +301,11 @@ class ThermalCamera(CameraIntrinsics):
     time_constant_s: float = Field(default=0.010, ge=0.0, le=0.1)
     fpn_column_offset_k: float = Field(default=0.02, ge=0.0, le=10.0, description="rms per-column offset")
     fpn_column_gain: float = Field(default=0.005, ge=0.0, le=0.5, description="rms per-column gain error")
+    fpn_pixel_gain: float | None = Field(
+        default=None, ge=0.0, le=0.5,
+        description="rms per-pixel gain residual after the shutter NUC: a scene this many kelvin from the shutter "
+                    "shows a fixed grain of fpn_pixel_gain x that many kelvin (a cold clear sky: grain; near the "
+                    "shutter: none); None = off")
     adc_bits: Literal[14, 16] = 16
     agc: Literal["minmax", "percentile", "histogram", "plateau"] = "minmax"
     agc_bin_k: float = Field(default=0.05, gt=0.0, le=5.0, description="plateau: histogram bin width")
@@ -327,7 +332,7 @@ class ThermalCamera(CameraIntrinsics):
                                                      "the range (FLIR ITT mean / brightness; None = off)")
 
     #: fields added after the scenario format froze, left out of scenario.yaml while unset
-    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("agc_mean_level", "agc_base_opening_px")
+    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("agc_mean_level", "agc_base_opening_px", "fpn_pixel_gain")
 
     @model_serializer(mode="wrap")
     def _dump(self, handler):

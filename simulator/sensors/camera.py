@@ -405,9 +405,11 @@ class ThermalSensor:
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["thermal"], FPN_STREAM)
         self.column_gain = (p.fpn_column_gain * rng.standard_normal(p.width_px)).astype(np.float64)
         self.column_offset_k = (p.fpn_column_offset_k * rng.standard_normal(p.width_px)).astype(np.float64)
-        self._gain_row = (1.0 + self.column_gain[None, :]).astype(np.float32)
-        self._fpn_add_row = (self.nuc_reference_k * -self.column_gain[None, :]
-                             + self.column_offset_k[None, :]).astype(np.float32)
+        gain = self.column_gain[None, :]               # a row, or a full map with the per-pixel residual
+        if p.fpn_pixel_gain:                           # drawn after the column terms: those stay as they were
+            gain = gain + p.fpn_pixel_gain * rng.standard_normal((p.height_px, p.width_px))
+        self._fpn_gain = (1.0 + gain).astype(np.float32)
+        self._fpn_add = (self.nuc_reference_k * -gain + self.column_offset_k[None, :]).astype(np.float32)
         self._scratch = Scratch()
         self._plateau = PlateauAgc(p.kelvin_per_count, p.agc_bin_k, p.agc_plateau_fraction, p.agc_linear_fraction,
                                    p.agc_tail_fraction, p.agc_min_span_k, p.agc_damping, p.agc_base_sigma_px,
@@ -430,8 +432,8 @@ class ThermalSensor:
         """Radiance -> (recorded kelvin float32, counts uint16, AGC uint8)."""
         p = self.params
         kelvin = radiometry.brightness_temperature_f32(self.detector_radiance(frame, radiance))
-        kelvin *= self._gain_row                      # (T - ref) gain + ref + offset
-        kelvin += self._fpn_add_row
+        kelvin *= self._fpn_gain                      # (T - ref) gain + ref + offset
+        kelvin += self._fpn_add
         rng = rng_for(self.timeline.seed, "camera", CAMERA_INDEX["thermal"], NOISE_STREAM, frame)
         kelvin += standard_normal_f32(rng, self._scratch("noise", kelvin.shape), scale=p.netd_k)
         level = np.divide(kelvin, p.kelvin_per_count, out=self._scratch("level", kelvin.shape))

@@ -109,6 +109,30 @@ def test_column_gain_acts_about_the_nuc_reference():
     assert (cold.mean(axis=0) - 260.0).std() == pytest.approx(40 * 0.05, rel=0.2)
 
 
+def test_pixel_gain_is_a_fixed_grain_about_the_nuc_reference_and_leaves_the_columns_alone():
+    base = dict(w=120, h=100, netd_k=1e-6, fpn_column_offset_k=0.01, fpn_column_gain=0.002)
+    tl0 = _timeline(**base)
+    tl = _timeline(**base, fpn_pixel_gain=0.004)
+    p = tl.scenario.camera_rig.thermal
+    at_ref, _, _ = cam.ThermalSensor(p, tl, 1 / 30, 300.0).record(0, _flat_thermal(tl, 300.0))
+    assert np.abs(at_ref - 300.0).max() < 0.05            # only the column offsets (0.01 K rms) at the reference
+    sensor = cam.ThermalSensor(p, tl, 1 / 30, 300.0)
+    cold_a, _, _ = sensor.record(0, _flat_thermal(tl, 260.0))
+    cold_b, _, _ = sensor.record(1, _flat_thermal(tl, 260.0))
+    without, _, _ = cam.ThermalSensor(tl0.scenario.camera_rig.thermal, tl0, 1 / 30, 300.0).record(
+        0, _flat_thermal(tl0, 260.0))
+    grain = cold_a.astype(np.float64) - without                 # the same column draws: only the pixel term left
+    assert grain.std() == pytest.approx(40 * 0.004, rel=0.05)  # 40 K below the reference x 0.4 %
+    assert np.abs(grain.mean(axis=0)).max() < 0.1 * grain.std() * 3   # no column structure of its own
+    assert np.abs(cold_a - cold_b).max() < 1e-3                 # fixed over frames
+
+
+def test_pixel_gain_unset_is_left_out_of_the_scenario_dump():
+    p = _timeline().scenario.camera_rig.thermal
+    assert "fpn_pixel_gain" not in p.model_dump()
+    assert p.model_copy(update={"fpn_pixel_gain": 0.001}).model_dump()["fpn_pixel_gain"] == 0.001
+
+
 def test_bolometer_lag_is_first_order():
     tl = _timeline(w=32, h=24, frames=8)
     p = tl.scenario.camera_rig.thermal
@@ -201,7 +225,7 @@ def test_metadata_records_every_sensor_parameter():
     tl = _timeline()
     meta = cam.CameraModel(tl, 10.0).metadata()
     for field in ThermalCamera.model_fields:
-        if field in ("agc_mean_level", "agc_base_opening_px"):   # opt-in, left out of every dump while unset
+        if field in ThermalCamera._OMIT_WHEN_UNSET:   # opt-in, left out of every dump while unset
             assert field not in meta["thermal"]
             continue
         assert field in meta["thermal"]
