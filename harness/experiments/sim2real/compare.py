@@ -8,7 +8,9 @@ balanced accuracy (mean over seeds) between the runs, with a 95 % interval from 
 evaluation clips, the same draws for both runs, and its minimum detectable difference (2.8 standard
 errors of that bootstrap: a two-sided 5 % test with 80 % power). Pairing removes the variance of the
 real test set that an unpaired comparison of two runs' intervals carries; the variance of drawing
-another synthetic set is not in it (that needs more draws, not more crops).
+another synthetic set is not in it (that needs more draws, not more crops). Beside it, each condition's
+recall per class before and after (mean over seeds; class names from the runs' ``sim2real.json``), to
+see where a difference comes from.
 """
 from __future__ import annotations
 
@@ -69,9 +71,17 @@ def read_predictions(path: Path, field: str = "run") -> dict[str, Any]:
     return data
 
 
+def class_recall(y: np.ndarray, predicted: np.ndarray) -> list[float | None]:
+    """Per true class 0..max(y): the recall averaged over the seeds' predictions ``predicted`` (seeds x
+    crops); None for a class with no crop."""
+    n = int(y.max()) + 1 if y.size else 0
+    return [float(np.mean(predicted[:, y == k] == k)) if np.any(y == k) else None for k in range(n)]
+
+
 def compare_sensor(before: dict[str, Any], after: dict[str, Any], *, bootstrap: int, rng_seed: int,
-                   sensor: str = "") -> dict[str, Any]:
-    """Paired differences after - before per condition both runs have (see the module docstring)."""
+                   sensor: str = "", classes: Sequence[str] | None = None) -> dict[str, Any]:
+    """Paired differences after - before per condition both runs have (see the module docstring), and
+    each condition's per-class recall before and after (where the balanced accuracy moved: no interval)."""
     from scenes.errors import UserInputError
 
     if not (np.array_equal(before["y"], after["y"]) and np.array_equal(before["clip"], after["clip"])):
@@ -80,8 +90,11 @@ def compare_sensor(before: dict[str, Any], after: dict[str, Any], *, bootstrap: 
                              f"real data with the same frames per clip, so they cannot be paired")
     y, clips = before["y"], before["clip"]
     names_b, names_a = [str(n) for n in before["conditions"]], [str(n) for n in after["conditions"]]
+    n_classes = int(y.max()) + 1 if y.size else 0
+    names = list(classes) if classes is not None and len(classes) == n_classes else [f"class {k}"
+                                                                                     for k in range(n_classes)]
     out: dict[str, Any] = {"n_test_crops": int(len(y)), "n_test_clips": int(np.unique(clips).size),
-                           "conditions": {}}
+                           "classes": names, "conditions": {}}
     for name in [n for n in names_b if n in names_a]:
         pb, pa = before["predicted"][names_b.index(name)], after["predicted"][names_a.index(name)]
         data = np.concatenate([pb.T, pa.T], axis=1)      # rows = crops: before seeds, then after seeds
@@ -96,7 +109,8 @@ def compare_sensor(before: dict[str, Any], after: dict[str, Any], *, bootstrap: 
             "label": CONDITION_LABELS.get(name, name),
             "before": mean_balanced_accuracy(y, pb), "after": mean_balanced_accuracy(y, pa),
             "difference": res.estimate, "ci_low": res.ci_low, "ci_high": res.ci_high,
-            "mde": float(Z_MDE * finite.std(ddof=1)) if finite.size > 2 else float("nan")}
+            "mde": float(Z_MDE * finite.std(ddof=1)) if finite.size > 2 else float("nan"),
+            "recall_before": class_recall(y, pb), "recall_after": class_recall(y, pa)}
     return out
 
 
@@ -116,13 +130,30 @@ def compare_runs(before: Path, after: Path, *, sensors: Sequence[str] = VISUAL_S
             result["skipped"].append(f"{sensor}: only the {'before' if pb.is_file() else 'after'} run has it")
             continue
         result["sensors"][sensor] = compare_sensor(read_predictions(pb, "--before"), read_predictions(pa, "--after"),
-                                                   bootstrap=bootstrap, rng_seed=rng_seed, sensor=sensor)
+                                                   bootstrap=bootstrap, rng_seed=rng_seed, sensor=sensor,
+                                                   classes=_run_classes(before, sensor))
     if not result["sensors"]:
         for field, run in (("--before", before), ("--after", after)):
             if not any(predictions_path(run, s).is_file() for s in sensors):
                 read_predictions(predictions_path(run, sensors[0]), field)   # raises, naming the folder
         raise UserInputError(f"--before / --after: no visual sensor in common ({'; '.join(result['skipped'])})")
     return result
+
+
+def _run_classes(run: Path, sensor: str) -> list[str] | None:
+    """The class names a run's summary lists for ``sensor`` (None when it has none to give)."""
+    import json
+
+    try:
+        names = json.loads((Path(run) / "sim2real.json").read_text())["sensors"][sensor]["classes"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return [str(n) for n in names] if isinstance(names, list) else None
+
+
+def _recall_line(names: Sequence[str], before: Sequence[float | None], after: Sequence[float | None]) -> str:
+    return "recall " + ", ".join(f"{n.lower()} {100 * b:.0f} -> {100 * a:.0f}" for n, b, a in zip(names, before, after)
+                                 if b is not None and a is not None)
 
 
 def format_comparison(result: dict[str, Any]) -> str:
@@ -134,5 +165,7 @@ def format_comparison(result: dict[str, Any]) -> str:
         for c in res["conditions"].values():
             lines.append(f"  {c['label']:38s} {c['before']:.3f} -> {c['after']:.3f}  {100 * c['difference']:+5.1f} "
                          f"[{100 * c['ci_low']:+5.1f}, {100 * c['ci_high']:+5.1f}] pt, MDE {100 * c['mde']:.1f}")
+            if "recall_before" in c:
+                lines.append(f"  {'':38s} {_recall_line(res['classes'], c['recall_before'], c['recall_after'])} %")
     lines += [f"  skipped {s}" for s in result["skipped"]]
     return "\n".join(lines)

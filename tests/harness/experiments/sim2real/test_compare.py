@@ -44,6 +44,14 @@ def test_paired_difference_known_answer_and_zero_for_the_same_predictions():
     a = res["conditions"]["a_real"]
     assert a["difference"] == a["ci_low"] == a["ci_high"] == 0.0
     assert res["n_test_crops"] == 12 and res["n_test_clips"] == 6
+    assert b["recall_before"] == [1.0, 0.0] and b["recall_after"] == [1.0, 1.0]   # class 1 is where it moved
+    assert res["classes"] == ["class 0", "class 1"]
+
+
+def test_class_recall_is_the_seed_mean_and_none_for_an_absent_class():
+    y = np.array([0, 0, 2, 2])
+    predicted = np.array([[0, 1, 2, 2], [0, 0, 0, 2]])
+    assert compare.class_recall(y, predicted) == [0.75, None, 0.75]
 
 
 def test_one_seed_better_half_the_difference_and_an_interval_that_needs_resampling():
@@ -116,6 +124,10 @@ def test_cli_prints_writes_json_and_refuses_bad_input(tmp_path):
                 "--bootstrap", "200")
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "(b) synthetic only" in proc.stdout and "+50.0 [+50.0, +50.0] pt" in proc.stdout
+    assert "recall class 0 100 -> 100, class 1 0 -> 100 %" in proc.stdout
+    (before / "sim2real.json").write_text(json.dumps({"sensors": {"ir": {"classes": ["DRONE", "BIRD"]}}}))
+    named = _cli("sim2real-compare", "--before", str(before), "--after", str(after), "--bootstrap", "200")
+    assert "recall drone 100 -> 100, bird 0 -> 100 %" in named.stdout
     saved = json.loads(out.read_text())
     assert saved["sensors"]["ir"]["conditions"]["b_synthetic"]["difference"] == 0.5
     again = _cli("sim2real-compare", "--before", str(before), "--after", str(after), "--json", str(out))
