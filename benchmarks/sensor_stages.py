@@ -6,7 +6,9 @@ a reference computed in the same run on the same frames:
   Gaussian base (sigma 15 px), both at that camera's 320x256 (every other pixel of the same frames);
 - the camcorder tone (tone: camcorder) vs the fixed sRGB look-up (tone: srgb);
 - the H.264 recording stage (camera_rig.recording) for an RGB and a grey frame vs writing the same
-  frame as PNG (simulator.formats.native.write_png, which every native render already does).
+  frame as PNG (simulator.formats.native.write_png, which every native render already does);
+- the thermal camera's record step (radiance -> kelvin, counts, 8-bit) with the per-pixel gain residual
+  (fpn_pixel_gain) vs the column terms only, at the sim2real camera's 320x256.
 
 Inputs are synthetic (a noisy sky gradient over a warm ground band with a moving target).
 
@@ -24,7 +26,7 @@ import numpy as np
 from scenes.schema import Recording
 from simulator.formats.native import write_png
 from simulator.sensors.agc import CamcorderExposure, PlateauAgc
-from simulator.sensors.camera import equalise_counts
+from simulator.sensors.camera import ThermalSensor, equalise_counts
 from simulator.sensors.recording import H264Stream
 
 H, W = 512, 640
@@ -43,6 +45,18 @@ def _frames(n: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
         lin = np.repeat((1500 + 800 * yy / H)[..., None], 3, axis=-1) + rng.normal(0, 20, (H, W, 3))
         levels.append(np.clip(lin, 0, 4095).astype(np.uint16))
     return counts, levels
+
+
+def _thermal_sensors() -> tuple[ThermalSensor, ThermalSensor]:
+    """The sim2real drone camera's settings at 320x256, without and with the per-pixel gain residual."""
+    from scenes import load_scenario
+    from simulator.physics.timeline import build_timeline
+
+    scenario = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "sim2real" / "realism_drone.yaml")
+    timeline = build_timeline(scenario, 0)
+    with_pixel = scenario.camera_rig.thermal
+    columns_only = with_pixel.model_copy(update={"fpn_pixel_gain": None})
+    return (ThermalSensor(columns_only, timeline, 1 / 30, 285.0), ThermalSensor(with_pixel, timeline, 1 / 30, 285.0))
 
 
 def _per_frame_ms(fn, items) -> float:
@@ -71,6 +85,10 @@ def main() -> None:
     rec = Recording(crf=28.0, preset=args.preset)
     rgb_stream = H264Stream(W, H, 30.0, rec, colour=True)
     grey_stream = H264Stream(W, H, 30.0, rec, colour=False)
+    from simulator.physics.thermal import band_radiance
+
+    columns_only, with_pixel = _thermal_sensors()
+    radiance_320 = [band_radiance(c[::2, ::2].astype(np.float32) * 0.01).astype(np.float32) for c in counts]
     with tempfile.TemporaryDirectory() as tmp:
         rows = [
             ("plateau AGC (thermal)", _per_frame_ms(plateau, counts), "histogram AGC",
@@ -85,6 +103,8 @@ def main() -> None:
              _per_frame_ms(lambda x: write_png(Path(tmp) / "a.png", x), rgb8)),
             ("H.264 encode+decode grey", _per_frame_ms(grey_stream, grey8), "PNG write grey",
              _per_frame_ms(lambda x: write_png(Path(tmp) / "b.png", x), grey8)),
+            ("320x256: record, pixel FPN", _per_frame_ms(lambda r: with_pixel.record(0, r), radiance_320),
+             "column FPN only", _per_frame_ms(lambda r: columns_only.record(0, r), radiance_320)),
         ]
     print(f"per {W}x{H} frame, {args.frames} frames, preset {args.preset} (single thread)")
     for name, ms, ref, ref_ms in rows:
