@@ -25,6 +25,7 @@ import numpy as np
 
 from scenes.schema import Recording
 from simulator.formats.native import write_png
+from simulator.physics.thermal import band_radiance
 from simulator.sensors.agc import CamcorderExposure, PlateauAgc
 from simulator.sensors.camera import ThermalSensor, equalise_counts
 from simulator.sensors.recording import H264Stream
@@ -85,8 +86,6 @@ def main() -> None:
     rec = Recording(crf=28.0, preset=args.preset)
     rgb_stream = H264Stream(W, H, 30.0, rec, colour=True)
     grey_stream = H264Stream(W, H, 30.0, rec, colour=False)
-    from simulator.physics.thermal import band_radiance
-
     columns_only, with_pixel = _thermal_sensors()
     radiance_320 = [band_radiance(c[::2, ::2].astype(np.float32) * 0.01).astype(np.float32) for c in counts]
     with tempfile.TemporaryDirectory() as tmp:

@@ -172,6 +172,13 @@ class SensorRandomisation(_Model):
         return self
 
 
+#: randomisation ranges that must lie inside a closed interval: (low, high, unit in the message)
+_CLOSED_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "time_of_day_h": (0.0, 24.0, ""), "relative_humidity": (0.0, 1.0, ""), "sun_elevation_deg": (-90.0, 90.0, ""),
+    "cloud_cover": (0.0, 1.0, ""), "multirotor_frame_warming_k": (0.0, 60.0, " K"), "paint_reflectance": (0.0, 1.0, ""),
+}
+
+
 class Randomisation(_Model):
     """Ranges applied on top of each mixture scenario; a field left null keeps the preset's value.
 
@@ -258,15 +265,10 @@ class Randomisation(_Model):
             value = getattr(self, name)
             if value is not None and value.min <= 0:
                 raise ValueError(f"{name} must be > 0, got [{value.min}, {value.max}]")
-        if self.time_of_day_h is not None and (self.time_of_day_h.min < 0 or self.time_of_day_h.max > 24):
-            raise ValueError(f"time_of_day_h must lie in [0, 24], got [{self.time_of_day_h.min}, "
-                             f"{self.time_of_day_h.max}]")
-        if self.relative_humidity is not None and (self.relative_humidity.min < 0 or self.relative_humidity.max > 1):
-            raise ValueError("relative_humidity must lie in [0, 1]")
-        if self.sun_elevation_deg is not None and (self.sun_elevation_deg.min < -90 or self.sun_elevation_deg.max > 90):
-            raise ValueError("sun_elevation_deg must lie in [-90, 90]")
-        if self.cloud_cover is not None and (self.cloud_cover.min < 0 or self.cloud_cover.max > 1):
-            raise ValueError(f"cloud_cover must lie in [0, 1], got [{self.cloud_cover.min}, {self.cloud_cover.max}]")
+        for name, (low, high, unit) in _CLOSED_BOUNDS.items():
+            value = getattr(self, name)
+            if value is not None and not (low <= value.min and value.max <= high):
+                raise ValueError(f"{name} must lie in [{low:g}, {high:g}]{unit}, got [{value.min}, {value.max}]")
         for b in self.distance_bins or []:
             if b.range_m.min <= 0:
                 raise ValueError(f"distance_bins range_m must be > 0, got [{b.range_m.min}, {b.range_m.max}]")
@@ -276,14 +278,6 @@ class Randomisation(_Model):
             value = getattr(self, name)
             if value is not None and (value.min < 0 or (name == "hfov_deg" and not 0 < value.min <= value.max < 170)):
                 raise ValueError(f"{name} out of range, got [{value.min}, {value.max}]")
-        if self.multirotor_frame_warming_k is not None and not (
-                0.0 <= self.multirotor_frame_warming_k.min and self.multirotor_frame_warming_k.max <= 60.0):
-            raise ValueError(f"multirotor_frame_warming_k must lie in [0, 60] K, got "
-                             f"[{self.multirotor_frame_warming_k.min}, {self.multirotor_frame_warming_k.max}]")
-        if self.paint_reflectance is not None and not (
-                0.0 <= self.paint_reflectance.min and self.paint_reflectance.max <= 1.0):
-            raise ValueError(f"paint_reflectance must lie in [0, 1], got "
-                             f"[{self.paint_reflectance.min}, {self.paint_reflectance.max}]")
         for name in ("speed_mps", "target_px", "target_size_scale"):
             value = getattr(self, name)
             if value is not None and value.min <= 0:

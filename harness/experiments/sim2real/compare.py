@@ -15,6 +15,7 @@ see where a difference comes from.
 from __future__ import annotations
 
 import io
+import json
 import zipfile
 from pathlib import Path
 from typing import Any, Sequence
@@ -81,7 +82,7 @@ def class_recall(y: np.ndarray, predicted: np.ndarray) -> list[float | None]:
 def compare_sensor(before: dict[str, Any], after: dict[str, Any], *, bootstrap: int, rng_seed: int,
                    sensor: str = "", classes: Sequence[str] | None = None) -> dict[str, Any]:
     """Paired differences after - before per condition both runs have (see the module docstring), and
-    each condition's per-class recall before and after (where the balanced accuracy moved: no interval)."""
+    each condition's per-class recall before and after (to see where a difference comes from; no interval)."""
     from scenes.errors import UserInputError
 
     if not (np.array_equal(before["y"], after["y"]) and np.array_equal(before["clip"], after["clip"])):
@@ -142,8 +143,6 @@ def compare_runs(before: Path, after: Path, *, sensors: Sequence[str] = VISUAL_S
 
 def _run_classes(run: Path, sensor: str) -> list[str] | None:
     """The class names a run's summary lists for ``sensor`` (None when it has none to give)."""
-    import json
-
     try:
         names = json.loads((Path(run) / "sim2real.json").read_text())["sensors"][sensor]["classes"]
     except (OSError, ValueError, KeyError, TypeError):
