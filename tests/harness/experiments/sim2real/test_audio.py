@@ -365,7 +365,9 @@ def test_resonances_off_by_default_and_reach_only_the_listed_classes():
     else), its RMS kept before the recorder; a listed class with count 0 is unchanged."""
     import hashlib
 
-    cfg = {"duration_s": 2.0, "drone_range_m": [[10.0, 20.0]], "ambience_shapes": {}}
+    # the recorder and microphone wind of main 9ef1f81 (the peak-detector AGC until the fourteenth session)
+    cfg = {"duration_s": 2.0, "drone_range_m": [[10.0, 20.0]], "ambience_shapes": {}, "mic_wind_db": [-6.0, 4.0],
+           "microphone": {"agc_target_dbfs": [-28.0, -20.0], "presence_hz": [4000.0, 10000.0]}}
     off = A.synthetic_audio_clips(cfg, 3, 1)
     assert tuple(hashlib.sha256(c.samples.tobytes()).hexdigest() for c in off) == MAIN_2S_SHA256
     spans = {"resonance_hz": [150.0, 8000.0], "resonance_db": [6.0, 14.0], "resonance_q": [1.5, 5.0]}
