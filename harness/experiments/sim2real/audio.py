@@ -946,10 +946,11 @@ def spectrogram_figure(real: list[AudioClip], synthetic: list[AudioClip], path: 
 
 
 def run_audio_track(real_clips: list[AudioClip], synthetic_clips: list[AudioClip], seeds: list[int], quick: bool,
-                    out_dir: Path, progress: bool = False) -> dict[str, Any]:
+                    out_dir: Path, progress: bool = False, predictions: Path | None = None) -> dict[str, Any]:
     """The audio track: per-class statistics (real IQR vs synthetic median), drone-vs-not-drone
     conditions (a)-(d+) for a CNN and a log-mel logistic regression tested on the real evaluation
-    half with clip-bootstrap 95 % CIs, and ``out_dir/audio_spectrograms.png``. JSON-able summary."""
+    half with clip-bootstrap 95 % CIs, and ``out_dir/audio_spectrograms.png``. JSON-able summary.
+    ``predictions``: also keep every evaluation window's scores there (``evids sim2real-compare``)."""
     import torch
 
     t_start = time.perf_counter()
@@ -1007,6 +1008,11 @@ def run_audio_track(real_clips: list[AudioClip], synthetic_clips: list[AudioClip
                 scores[cond]["logreg"].append(_fit_predict_lr(train, w, w_ev, seed))
                 scores[cond]["cnn"].append(_fit_predict_cnn(train, w, w_ev, seed, epochs))
                 say(f"seed {seed} {cond} done")
+        if predictions is not None:
+            from harness.experiments.sim2real.compare import write_audio_scores
+
+            write_audio_scores(predictions, w_ev.y, [ev[i].name for i in w_ev.clip], w_ev.cls, MODELS,
+                               list(CONDITIONS), seeds, [[scores[c][m] for c in CONDITIONS] for m in MODELS])
         boot = _bootstrap_indices(w_ev, ev, np.random.default_rng(0), n_boot)
         classifier: dict[str, Any] = {}
         heli = w_ev.cls == "HELICOPTER"

@@ -11,6 +11,11 @@ real test set that an unpaired comparison of two runs' intervals carries; the va
 another synthetic set is not in it (that needs more draws, not more crops). Beside it, each condition's
 recall per class before and after (mean over seeds; class names from the runs' ``sim2real.json``), to
 see where a difference comes from.
+
+The audio track keeps its drone scores the same way (``predictions/audio.npz``: per evaluation window its
+label drone / not drone, its recording and class, and the score per model, condition and training seed);
+its comparison is the ROC-AUC (mean over seeds) after - before per model and condition, with a bootstrap
+that draws recordings per class (as the audio track's own intervals do), the same draws for both runs.
 """
 from __future__ import annotations
 
@@ -28,6 +33,8 @@ from harness.experiments.sim2real.config import VISUAL_SENSORS
 
 PREDICTIONS_DIR = "predictions"
 FORMAT_VERSION = 1
+AUDIO = "audio"
+AUDIO_FORMAT_VERSION = 1
 
 
 def predictions_path(run: Path, sensor: str) -> Path:
@@ -70,6 +77,102 @@ def read_predictions(path: Path, field: str = "run") -> dict[str, Any]:
         raise UserInputError(f"{field}: {str(path)!r} has predictions format {data.get('format_version')}, "
                              f"this version reads {FORMAT_VERSION}")
     return data
+
+
+def write_audio_scores(path: Path, y: np.ndarray, clip: Sequence[str], cls: Sequence[str], models: Sequence[str],
+                       conditions: Sequence[str], seeds: Sequence[int], scores: np.ndarray) -> None:
+    """Write (atomically) the audio track's drone ``scores`` (models x conditions x seeds x windows) for the
+    evaluation windows of labels ``y`` (1 = drone), recordings ``clip`` and classes ``cls``."""
+    from simulator.files import write_atomic
+
+    scores = np.asarray(scores)
+    shape = (len(models), len(conditions), len(seeds), len(y))
+    if scores.shape != shape or len(clip) != len(y) or len(cls) != len(y):
+        raise ValueError(f"scores has shape {scores.shape}, expected {shape} (and one clip and class per window)")
+    buf = io.BytesIO()
+    np.savez_compressed(buf, format_version=np.int64(AUDIO_FORMAT_VERSION), y=np.asarray(y, np.int64),
+                        clip=np.asarray(list(clip), str), cls=np.asarray(list(cls), str),
+                        models=np.asarray(list(models), str), conditions=np.asarray(list(conditions), str),
+                        seeds=np.asarray(list(seeds), np.int64), scores=scores.astype(np.float32))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, buf.getvalue())
+
+
+def read_audio_scores(path: Path, field: str = "run") -> dict[str, Any]:
+    """The arrays of :func:`write_audio_scores`; a missing or unreadable file is a ``UserInputError``
+    naming ``field``."""
+    from scenes.errors import UserInputError
+
+    if not path.is_file():
+        raise UserInputError(f"{field}: {str(path.parent.parent)!r} holds no {PREDICTIONS_DIR}/{path.name} (a run of "
+                             f"`evids sim2real` from before audio scores were kept, a run without audio, or not a run "
+                             f"folder): rerun it")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
+        raise UserInputError(f"{field}: {str(path)!r} is not an audio scores file ({exc})") from None
+    if int(data.get("format_version", -1)) != AUDIO_FORMAT_VERSION:
+        raise UserInputError(f"{field}: {str(path)!r} has audio scores format {data.get('format_version')}, "
+                             f"this version reads {AUDIO_FORMAT_VERSION}")
+    return data
+
+
+def _stratified_draws(clip: np.ndarray, cls: np.ndarray, rng: np.random.Generator, n: int) -> list[np.ndarray]:
+    """``n`` resamples of window indices: per class its recordings drawn with replacement (every resample
+    keeps drone and not-drone recordings, so every ROC-AUC is defined)."""
+    from evids.metrics.bootstrap import clustered_resample
+
+    recordings = np.unique(clip)
+    by_class: dict[str, list[str]] = {}
+    for r in recordings:
+        by_class.setdefault(str(cls[np.flatnonzero(clip == r)[0]]), []).append(r)
+    out = []
+    for _ in range(n):
+        draw = np.concatenate([rng.choice(np.asarray(ids), size=len(ids), replace=True)
+                               for _, ids in sorted(by_class.items())])
+        out.append(clustered_resample(clip, draw))
+    return out
+
+
+def compare_audio(before: dict[str, Any], after: dict[str, Any], *, bootstrap: int, rng_seed: int) -> dict[str, Any]:
+    """Paired ROC-AUC differences after - before per model and condition both runs have (see the module
+    docstring), with each condition's helicopter and background windows called drone (score > 0.5) before
+    and after."""
+    from harness.experiments.sim2real.audio import roc_auc
+    from scenes.errors import UserInputError
+
+    if not all(np.array_equal(before[k], after[k]) for k in ("y", "clip", "cls")):
+        raise UserInputError(f"audio: the two runs' real evaluation windows differ ({len(before['y'])} against "
+                             f"{len(after['y'])} windows, or other recordings): they were not made from the same "
+                             f"real data, so they cannot be paired")
+    y, clip, cls = before["y"], before["clip"], before["cls"]
+    draws = _stratified_draws(clip, cls, np.random.default_rng(rng_seed), bootstrap)
+    out: dict[str, Any] = {"n_test_windows": int(len(y)), "n_test_clips": int(np.unique(clip).size), "models": {}}
+
+    def auc(scores: np.ndarray, idx: np.ndarray | slice) -> float:
+        return float(np.mean([roc_auc(y[idx], s[idx]) for s in scores]))
+
+    def called(scores: np.ndarray, name: str) -> float | None:
+        m = cls == name
+        return float(np.mean(scores[:, m] > 0.5)) if m.any() else None
+
+    for model in [str(m) for m in before["models"] if m in list(after["models"])]:
+        mb, ma = list(before["models"]).index(model), list(after["models"]).index(model)
+        names_b, names_a = [str(n) for n in before["conditions"]], [str(n) for n in after["conditions"]]
+        rows: dict[str, Any] = {}
+        for name in [n for n in names_b if n in names_a]:
+            sb, sa = before["scores"][mb, names_b.index(name)], after["scores"][ma, names_a.index(name)]
+            samples = np.array([auc(sa, i) - auc(sb, i) for i in draws])
+            lo, hi = np.percentile(samples, [2.5, 97.5])
+            rows[name] = {"label": CONDITION_LABELS.get(name, name), "before": auc(sb, slice(None)),
+                          "after": auc(sa, slice(None)), "difference": auc(sa, slice(None)) - auc(sb, slice(None)),
+                          "ci_low": float(lo), "ci_high": float(hi),
+                          "mde": float(Z_MDE * samples.std(ddof=1)) if samples.size > 2 else float("nan"),
+                          "helicopter_called_drone": [called(sb, "HELICOPTER"), called(sa, "HELICOPTER")],
+                          "background_called_drone": [called(sb, "BACKGROUND"), called(sa, "BACKGROUND")]}
+        out["models"][model] = rows
+    return out
 
 
 def class_recall(y: np.ndarray, predicted: np.ndarray) -> list[float | None]:
@@ -116,13 +219,21 @@ def compare_sensor(before: dict[str, Any], after: dict[str, Any], *, bootstrap: 
 
 
 def compare_runs(before: Path, after: Path, *, sensors: Sequence[str] = VISUAL_SENSORS, bootstrap: int = 1000,
-                 rng_seed: int = 0) -> dict[str, Any]:
-    """Every visual sensor both runs measured: :func:`compare_sensor`. A sensor only one run has is listed
-    under ``skipped``; none in common is a ``UserInputError``."""
+                 rng_seed: int = 0, audio: bool = True) -> dict[str, Any]:
+    """Every visual sensor both runs measured: :func:`compare_sensor`; the audio track when both kept its
+    scores: :func:`compare_audio` (under ``audio``). A sensor only one run has is listed under ``skipped``;
+    nothing in common is a ``UserInputError``."""
     from scenes.errors import UserInputError
 
     result: dict[str, Any] = {"before": str(before), "after": str(after), "bootstrap": int(bootstrap),
                               "sensors": {}, "skipped": []}
+    if audio:
+        ab, aa = predictions_path(before, AUDIO), predictions_path(after, AUDIO)
+        if ab.is_file() and aa.is_file():
+            result["audio"] = compare_audio(read_audio_scores(ab, "--before"), read_audio_scores(aa, "--after"),
+                                            bootstrap=bootstrap, rng_seed=rng_seed)
+        elif ab.is_file() or aa.is_file():
+            result["skipped"].append(f"audio: only the {'before' if ab.is_file() else 'after'} run has its scores")
     for sensor in sensors:
         pb, pa = predictions_path(before, sensor), predictions_path(after, sensor)
         if not pb.is_file() and not pa.is_file():
@@ -133,11 +244,14 @@ def compare_runs(before: Path, after: Path, *, sensors: Sequence[str] = VISUAL_S
         result["sensors"][sensor] = compare_sensor(read_predictions(pb, "--before"), read_predictions(pa, "--after"),
                                                    bootstrap=bootstrap, rng_seed=rng_seed, sensor=sensor,
                                                    classes=_run_classes(before, sensor))
-    if not result["sensors"]:
+    if not result["sensors"] and "audio" not in result:
         for field, run in (("--before", before), ("--after", after)):
-            if not any(predictions_path(run, s).is_file() for s in sensors):
-                read_predictions(predictions_path(run, sensors[0]), field)   # raises, naming the folder
-        raise UserInputError(f"--before / --after: no visual sensor in common ({'; '.join(result['skipped'])})")
+            kept = [*sensors, AUDIO] if audio else list(sensors)
+            if not any(predictions_path(run, s).is_file() for s in kept):
+                raise UserInputError(f"{field}: {str(run)!r} holds no {PREDICTIONS_DIR}/ files ({', '.join(kept)}: a "
+                                     f"run of `evids sim2real` from before predictions were kept, or not a run "
+                                     f"folder): rerun it")
+        raise UserInputError(f"--before / --after: no sensor in common ({'; '.join(result['skipped'])})")
     return result
 
 
@@ -166,5 +280,19 @@ def format_comparison(result: dict[str, Any]) -> str:
                          f"[{100 * c['ci_low']:+5.1f}, {100 * c['ci_high']:+5.1f}] pt, MDE {100 * c['mde']:.1f}")
             if "recall_before" in c:
                 lines.append(f"  {'':38s} {_recall_line(res['classes'], c['recall_before'], c['recall_after'])} %")
+    if "audio" in result:
+        res = result["audio"]
+        lines.append(f"audio: drone ROC-AUC on the real evaluation half ({res['n_test_clips']} recordings, "
+                     f"{res['n_test_windows']} windows), after - before, paired ({result['bootstrap']} recording "
+                     f"resamples per class)")
+        for model, rows in res["models"].items():
+            for c in rows.values():
+                lines.append(f"  {model:6s} {c['label']:38s} {c['before']:.3f} -> {c['after']:.3f}  "
+                             f"{100 * c['difference']:+5.1f} [{100 * c['ci_low']:+5.1f}, {100 * c['ci_high']:+5.1f}] pt, "
+                             f"MDE {100 * c['mde']:.1f}")
+                called = [(k.split("_")[0], v) for k, v in c.items() if k.endswith("_called_drone") and None not in v]
+                if called:
+                    lines.append(f"  {'':6s} {'':38s} called drone: " + ", ".join(
+                        f"{n} {100 * b:.0f} -> {100 * a:.0f} %" for n, (b, a) in called))
     lines += [f"  skipped {s}" for s in result["skipped"]]
     return "\n".join(lines)

@@ -399,11 +399,12 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
 def _audio_track(bench, cfg: Sim2RealConfig, out: Path, quick: bool, progress: bool) -> dict[str, Any]:
     """Real audio clips of both halves and the synthetic clips of the config, through the audio track."""
     from harness.experiments.sim2real import audio
+    from harness.experiments.sim2real.compare import AUDIO, predictions_path
 
     real = audio.real_audio_clips(bench)
     synthetic = audio.synthetic_audio_clips(cfg.audio, cfg.seed, quick=quick)
     return audio.run_audio_track(real, synthetic, seeds=cfg.training.seeds, quick=quick, out_dir=out / "sheets",
-                                 progress=progress)
+                                 progress=progress, predictions=predictions_path(out, AUDIO))
 
 
 def format_table(summary: dict[str, Any]) -> str:

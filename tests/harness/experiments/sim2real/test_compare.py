@@ -105,7 +105,7 @@ def test_bad_input_names_the_field(tmp_path):
     with pytest.raises(UserInputError, match="--after.*not a predictions file"):
         compare.compare_runs(before, tmp_path / "junk")
     vis_only = _run(tmp_path / "vis", y, clip, pred, sensor="visible")
-    with pytest.raises(UserInputError, match="no visual sensor in common"):
+    with pytest.raises(UserInputError, match="no sensor in common"):
         compare.compare_runs(before, vis_only)
 
 
@@ -136,3 +136,63 @@ def test_cli_prints_writes_json_and_refuses_bad_input(tmp_path):
     missing = _cli("sim2real-compare", "--before", str(before), "--after", str(after), "--json",
                    str(tmp_path / "new.json"))
     assert missing.returncode == 2 and "--after" in missing.stderr and not (tmp_path / "new.json").exists()
+
+
+def _audio_run(folder: Path, scores: np.ndarray, *, n_clips: int = 4) -> Path:
+    """A run folder holding only audio scores: ``n_clips`` drone and ``n_clips`` helicopter recordings, two
+    windows each; ``scores``: models x conditions x seeds x windows."""
+    folder.mkdir(parents=True)
+    (folder / "sim2real.json").write_text("{}")
+    clip = np.repeat([f"d{i}" for i in range(n_clips)] + [f"h{i}" for i in range(n_clips)], 2)
+    cls = np.where(np.char.startswith(clip, "d"), "DRONE", "HELICOPTER")
+    compare.write_audio_scores(compare.predictions_path(folder, compare.AUDIO), (cls == "DRONE").astype(int), clip,
+                               cls, ["cnn"], CONDS, [0, 1], scores)
+    return folder
+
+
+def test_audio_paired_auc_difference_known_answer(tmp_path):
+    """Before: condition b scores every window 0.5 (AUC 0.5, no window called drone); after: drones 0.9,
+    helicopters 0.2 (AUC 1.0, none called drone), on every resample: +0.5 with a closed interval, MDE 0.
+    Condition a is the same in both runs: 0. A visual-only run on one side is skipped, not an error."""
+    y = np.repeat([1, 0], 8)
+    flat = np.full((1, 2, 2, 16), 0.5)
+    good = flat.copy()
+    good[0, 1] = np.where(y == 1, 0.9, 0.2)
+    before, after = _audio_run(tmp_path / "b", flat), _audio_run(tmp_path / "a", good)
+    res = compare.compare_runs(before, after, bootstrap=200)
+    b = res["audio"]["models"]["cnn"]["b_synthetic"]
+    assert (b["before"], b["after"], b["difference"]) == (0.5, 1.0, 0.5)
+    assert b["ci_low"] == b["ci_high"] == 0.5 and b["mde"] == 0.0
+    assert b["helicopter_called_drone"] == [0.0, 0.0] and b["background_called_drone"] == [None, None]
+    a = res["audio"]["models"]["cnn"]["a_real"]
+    assert a["difference"] == a["ci_low"] == a["ci_high"] == 0.0
+    assert res["audio"]["n_test_clips"] == 8 and res["audio"]["n_test_windows"] == 16
+    assert "+50.0 [+50.0, +50.0] pt" in compare.format_comparison(res)
+
+
+def test_audio_interval_opens_when_one_recording_decides(tmp_path):
+    """After: one drone recording scored under every helicopter (the others perfect): AUC 1 - 2/16 per seed on
+    the full set; resamples that draw that recording more or less often move it, so the interval is open and the
+    MDE positive; every resample keeps both classes (drawn per class)."""
+    y = np.repeat([1, 0], 8)
+    before = np.full((1, 2, 2, 16), 0.5)
+    after = before.copy()
+    s = np.where(y == 1, 0.9, 0.2)
+    s[:2] = 0.1                                             # recording d0: both windows under every helicopter
+    after[0, 1] = s
+    res = compare.compare_runs(_audio_run(tmp_path / "b", before), _audio_run(tmp_path / "a", after), bootstrap=300)
+    b = res["audio"]["models"]["cnn"]["b_synthetic"]
+    assert b["after"] == pytest.approx(1 - 16 / 64)          # 2 of 8 drone windows x 8 helicopter windows: 16 of 64
+    assert b["ci_low"] < b["difference"] < b["ci_high"] and b["mde"] > 0
+    assert np.isfinite(b["ci_low"])
+
+
+def test_audio_runs_of_other_recordings_refuse_to_pair(tmp_path):
+    scores = np.full((1, 2, 2, 16), 0.5)
+    before = _audio_run(tmp_path / "b", scores)
+    after = _audio_run(tmp_path / "a", np.full((1, 2, 2, 12), 0.5), n_clips=3)
+    with pytest.raises(UserInputError, match="audio: the two runs' real evaluation windows differ"):
+        compare.compare_runs(before, after, bootstrap=100)
+    with pytest.raises(ValueError, match="scores has shape"):
+        compare.write_audio_scores(tmp_path / "x.npz", np.zeros(4), ["c"] * 4, ["DRONE"] * 4, ["cnn"], CONDS, [0],
+                                   np.zeros((1, 2, 2, 4)))

@@ -323,6 +323,14 @@ def test_quick_run_keeps_its_predictions_for_paired_comparisons(quick_run, tmp_p
         for k, name in enumerate(got["conditions"]):
             assert [classify.balanced_accuracy(got["y"], p) for p in got["predicted"][k]] == \
                 pytest.approx(conds[name]["per_seed"])
+    from harness.experiments.sim2real.audio import roc_auc
+
+    scores = compare.read_audio_scores(compare.predictions_path(out, compare.AUDIO))   # the audio track's too
+    for i, model in enumerate(scores["models"]):
+        per_model = summary["sensors"]["audio"]["classifier"][model]
+        for k, name in enumerate(scores["conditions"]):
+            assert [roc_auc(scores["y"], s) for s in scores["scores"][i, k]] == \
+                pytest.approx(per_model[name]["roc_auc_per_seed"], nan_ok=True)
     same = _cli("sim2real-compare", "--before", str(out), "--after", str(out), "--json", str(tmp_path / "same.json"),
                 "--bootstrap", "100")
     assert same.returncode == 0, same.stderr[-2000:]
@@ -330,6 +338,10 @@ def test_quick_run_keeps_its_predictions_for_paired_comparisons(quick_run, tmp_p
     assert set(res["sensors"]) == {"ir", "visible"}
     assert all(c["difference"] == c["ci_low"] == c["ci_high"] == 0.0
                for s in res["sensors"].values() for c in s["conditions"].values())
+    assert set(res["audio"]["models"]) == {"cnn", "logreg"}
+    assert all(c["difference"] == c["ci_low"] == c["ci_high"] == 0.0
+               for rows in res["audio"]["models"].values() for c in rows.values())
+    assert "audio: drone ROC-AUC" in same.stdout
 
 
 def test_domain_balanced_weights_known_answer():
