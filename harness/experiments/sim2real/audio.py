@@ -422,10 +422,11 @@ def _config_model():
             description="the recording chain of the Svanström laptop recorder: the generic RecorderConfig with the "
                         "AGC target fitted to the calibration half (drones -24.8, helicopters -20.7 dBFS median) "
                         "and the capsule's 0-5 dB presence lift centred at 4-10 kHz instead of 2-6 kHz (all three "
-                        "classes' 1-5 kHz shares sat 0.4-4 dB over the calibration IQR with the generic lift); since the "
-                        "fourteenth session the AGC follows the mean level (as WebRTC's AGC2 level estimator does) with "
-                        "a floor of -28 dB instead of the loud blocks with -26 dB: a fluctuating drone recording left "
-                        "the peak detector 1.5-4.8 dB under its target (docs/SIM2REAL_AUDIO.md, thirteenth pass, C3)")
+                        "classes' 1-5 kHz shares sat 0.4-4 dB over the calibration IQR with the generic lift); "
+                        "since the fourteenth session the AGC follows the mean level (as WebRTC's AGC2 level "
+                        "estimator does) with a floor of -28 dB instead of the loud blocks with -26 dB: a fluctuating "
+                        "drone recording left the peak detector 1.5-4.8 dB under its target (docs/SIM2REAL_AUDIO.md, "
+                        "thirteenth pass, C3)")
         n_per_class: int = Field(default=20, ge=1, le=1000)
         quick_n_per_class: int = Field(default=2, ge=1, le=1000)
 

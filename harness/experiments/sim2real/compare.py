@@ -287,9 +287,9 @@ def format_comparison(result: dict[str, Any]) -> str:
                      f"resamples per class)")
         for model, rows in res["models"].items():
             for c in rows.values():
+                interval = f"[{100 * c['ci_low']:+5.1f}, {100 * c['ci_high']:+5.1f}]"
                 lines.append(f"  {model:6s} {c['label']:38s} {c['before']:.3f} -> {c['after']:.3f}  "
-                             f"{100 * c['difference']:+5.1f} [{100 * c['ci_low']:+5.1f}, {100 * c['ci_high']:+5.1f}] pt, "
-                             f"MDE {100 * c['mde']:.1f}")
+                             f"{100 * c['difference']:+5.1f} {interval} pt, MDE {100 * c['mde']:.1f}")
                 called = [(k.split("_")[0], v) for k, v in c.items() if k.endswith("_called_drone") and None not in v]
                 if called:
                     lines.append(f"  {'':6s} {'':38s} called drone: " + ", ".join(
