@@ -79,8 +79,8 @@ def read_predictions(path: Path, field: str = "run") -> dict[str, Any]:
     return data
 
 
-def write_audio_scores(path: Path, y: np.ndarray, clip: Sequence[str], cls: Sequence[str], models: Sequence[str],
-                       conditions: Sequence[str], seeds: Sequence[int], scores: np.ndarray) -> None:
+def write_audio_scores(path: Path, y: np.ndarray, clip: Sequence[str] | np.ndarray, cls: Sequence[str] | np.ndarray,
+                       models: Sequence[str], conditions: Sequence[str], seeds: Sequence[int], scores: Any) -> None:
     """Write (atomically) the audio track's drone ``scores`` (models x conditions x seeds x windows) for the
     evaluation windows of labels ``y`` (1 = drone), recordings ``clip`` and classes ``cls``."""
     from simulator.files import write_atomic
