@@ -283,6 +283,23 @@ class RgbCamera(CameraIntrinsics):
                               description="camcorder: per-frame memory of the exposure (log)")
     knee_point: float = Field(default=0.85, gt=0.0, le=1.0, description="camcorder: output level where the knee starts")
     knee_slope: float = Field(default=0.25, gt=0.0, le=1.0, description="camcorder: slope factor above the knee")
+    colour_gain: float | None = Field(
+        default=None, gt=0.0, le=4.0,
+        description="camcorder: gain on the chroma of the tone-mapped output about its BT.709 luma (the camera's "
+                    "colour level / saturation setting, applied before the encoder; 1 = colorimetric); None = off")
+
+    #: fields added after the scenario format froze, left out of scenario.yaml while unset
+    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("colour_gain",)
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
+
+    @model_validator(mode="after")
+    def _colour_gain_needs_camcorder(self) -> "RgbCamera":
+        if self.colour_gain is not None and self.tone != "camcorder":
+            raise ValueError(f"colour_gain is a camcorder setting: it needs tone: camcorder (got tone {self.tone!r})")
+        return self
 
 
 class ThermalCamera(CameraIntrinsics):

@@ -177,6 +177,7 @@ class CamcorderExposure:
     knee_point: float
     knee_slope: float
     max_factor: float = 8.0
+    colour_gain: float | None = None
     _log_factor: float | None = field(default=None, repr=False)
 
     def factor(self, level: np.ndarray) -> float:
@@ -193,7 +194,21 @@ class CamcorderExposure:
         return float(np.exp(self._log_factor))
 
     def __call__(self, level: np.ndarray) -> np.ndarray:
-        """8-bit tone-mapped frame of uint16 ADC levels (H, W, 3)."""
+        """8-bit tone-mapped frame of uint16 ADC levels (H, W, 3); with ``colour_gain`` its chroma scaled
+        (:func:`scale_chroma`) before the one rounding to 8 bits."""
         scale = self.factor(level) * self.value_per_level
-        lut = np.rint(bt709_knee(np.arange(self.levels + 1) * scale, self.knee_point, self.knee_slope) * 255.0)
-        return lut.astype(np.uint8).take(level.ravel()).reshape(level.shape)
+        curve = bt709_knee(np.arange(self.levels + 1) * scale, self.knee_point, self.knee_slope) * 255.0
+        if self.colour_gain is None:
+            return np.rint(curve).astype(np.uint8).take(level.ravel()).reshape(level.shape)
+        tone = curve.astype(np.float32).take(level.ravel()).reshape(level.shape)
+        return np.rint(scale_chroma(tone, self.colour_gain)).astype(np.uint8)
+
+
+def scale_chroma(rgb: np.ndarray, gain: float) -> np.ndarray:
+    """Gamma-encoded RGB (H, W, 3, float, 0-255) with its chroma (Cb, Cr: each channel's difference to the
+    BT.709 luma Y' = 0.2126 R' + 0.7152 G' + 0.0722 B') multiplied by ``gain``, luma kept, clipped to [0, 255];
+    a grey pixel is unchanged. What a camcorder's colour level does to its Y'CbCr before the encoder."""
+    luma = np.tensordot(rgb, np.asarray(LUMA_709, np.float32), axes=([2], [0])).astype(np.float32)
+    out = rgb * np.float32(gain)
+    out += (np.float32(1.0 - gain) * luma)[..., None]
+    return np.clip(out, 0.0, 255.0, out=out)

@@ -14,7 +14,8 @@ Per frame and camera, in this order (all linear stages commute; noise comes last
    damped over frames: simulator/sensors/agc.py);
 4. RGB: photo-electrons from the physical radiance (auto exposure capped at one frame period, then
    gain up to max_gain), shot (Poisson) and read noise, ADC quantisation, sRGB 8-bit
-   (``tone: camcorder`` = whole-frame metered auto-exposure + BT.709 curve with a highlight knee).
+   (``tone: camcorder`` = whole-frame metered auto-exposure + BT.709 curve with a highlight knee, and an
+   optional colour level ``colour_gain`` on the output's chroma).
 Noise is seeded per (scenario seed, camera, frame) through ``rng_for``; fixed-pattern noise per
 (seed, camera). Labels are computed from the renderer's exact buffers, never from these frames.
 """
@@ -486,7 +487,7 @@ class RgbSensor:
         self._scratch = Scratch()
         levels = 2 ** p.adc_bits - 1
         self._camcorder = CamcorderExposure(self.gain / levels, levels, p.ae_key, p.ae_damping, p.knee_point,
-                                            p.knee_slope) if p.tone == "camcorder" else None
+                                            p.knee_slope, colour_gain=p.colour_gain) if p.tone == "camcorder" else None
 
     def electrons_per_s_per_native_pixel(self, radiance_per_nm: float) -> float:
         """Photo-electron rate of a native pixel looking at a scene of this spectral radiance

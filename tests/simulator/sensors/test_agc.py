@@ -7,6 +7,7 @@ from simulator.sensors.agc import (
     PlateauAgc,
     bt709_knee,
     plateau_transfer,
+    scale_chroma,
 )
 
 
@@ -205,3 +206,32 @@ def test_mean_level_pins_the_frame_mean_and_is_off_by_default():
     assert ThermalCamera(agc_mean_level=0.41).model_dump(mode="json")["agc_mean_level"] == 0.41
     with pytest.raises(ValueError):
         ThermalCamera(agc_mean_level=1.0)
+
+
+def test_scale_chroma_by_hand_keeps_luma_and_greys():
+    """(R', G', B') = (100, 150, 200): Y' = 21.26 + 107.28 + 14.44 = 142.98; gain 2 puts each channel twice
+    as far from Y': (57.02, 157.02, 255 clipped from 257.02); a grey pixel and gain 1 change nothing."""
+    px = np.array([[[100.0, 150.0, 200.0], [90.0, 90.0, 90.0]]], np.float32)
+    out = scale_chroma(px.copy(), 2.0)
+    assert out[0, 0] == pytest.approx([57.02, 157.02, 255.0], abs=1e-3)
+    assert out[0, 1] == pytest.approx([90.0, 90.0, 90.0])
+    assert scale_chroma(px.copy(), 1.0) == pytest.approx(px)
+    inside = scale_chroma(np.array([[[120.0, 130.0, 150.0]]], np.float32), 1.5)   # no clipping: luma kept
+    y = lambda v: 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]              # noqa: E731
+    assert y(inside[0, 0]) == pytest.approx(y([120.0, 130.0, 150.0]), abs=1e-3)
+
+
+def test_camcorder_colour_gain_scales_chroma_and_is_off_when_unset():
+    """Unset: the rounded LUT path, byte for byte; set: the same frame's chroma (B' - R' of a bluish sky)
+    scales by the gain within the one rounding, its luma stays within half a level."""
+    levels = 4095
+    sky = np.zeros((8, 8, 3), np.uint16)
+    sky[...] = (900, 1200, 1800)
+    plain = CamcorderExposure(1.0 / levels, levels, 0.25, 0.0, 0.85, 0.25)(sky)
+    unit = CamcorderExposure(1.0 / levels, levels, 0.25, 0.0, 0.85, 0.25, colour_gain=1.0)(sky)
+    vivid = CamcorderExposure(1.0 / levels, levels, 0.25, 0.0, 0.85, 0.25, colour_gain=1.5)(sky)
+    assert np.array_equal(plain, unit)
+    p, v = plain[0, 0].astype(float), vivid[0, 0].astype(float)
+    assert (v[2] - v[0]) == pytest.approx(1.5 * (p[2] - p[0]), abs=1.5)
+    luma = np.array([0.2126, 0.7152, 0.0722])
+    assert float(v @ luma) == pytest.approx(float(p @ luma), abs=1.0)

@@ -230,7 +230,11 @@ def test_metadata_records_every_sensor_parameter():
             assert field not in meta["thermal"]
             continue
         assert field in meta["thermal"]
-    for field in type(tl.scenario.camera_rig.rgb).model_fields:
+    rgb_model = type(tl.scenario.camera_rig.rgb)
+    for field in rgb_model.model_fields:
+        if field in rgb_model._OMIT_WHEN_UNSET:      # opt-in, left out of every dump while unset
+            assert field not in meta["rgb"]
+            continue
         assert field in meta["rgb"]
     assert 0.6 < meta["thermal"]["psf_centre_pixel_fraction"] < 0.66
     pinned = cam.CameraModel(_timeline(agc="plateau", agc_mean_level=0.41), 10.0)
@@ -453,3 +457,29 @@ def test_agc_counts_equals_agc_of_the_shown_temperatures(mode, seed):
     counts = np.clip(np.rint(kelvin / kelvin_per_count), 0, 65535).astype(np.uint16)
     shown = np.multiply(counts, np.float32(kelvin_per_count), dtype=np.float32)
     assert np.array_equal(cam.agc_counts(counts, kelvin_per_count, mode), cam.agc(shown, mode))
+
+
+def test_rgb_colour_gain_is_opt_in_needs_the_camcorder_and_scales_the_recorded_chroma():
+    """Unset: out of every dump (scenario files and their hashes unchanged); set with tone srgb: refused, naming
+    the field; set with the camcorder: a bluish sky's B' - R' in the recorded frame scales by the gain."""
+    from scenes.schema import RgbCamera
+
+    assert "colour_gain" not in RgbCamera().model_dump()
+    assert RgbCamera(tone="camcorder", colour_gain=1.5).model_dump()["colour_gain"] == 1.5
+    with pytest.raises(ValidationError, match="colour_gain"):
+        RgbCamera(colour_gain=1.5)
+    with pytest.raises(ValidationError, match="colour_gain"):
+        RgbCamera(tone="camcorder", colour_gain=0.0)
+
+    def chroma(gain):
+        tl = _timeline(seed=4, frames=1)
+        params = tl.scenario.camera_rig.rgb.model_copy(update={"tone": "camcorder", "colour_gain": gain})
+        model = cam.CameraModel(tl, render_exposure=30.0)
+        model.rgb = cam.RgbSensor(params, tl, 1 / 30, 30.0)
+        sky = np.broadcast_to(np.array([0.06, 0.09, 0.14], np.float32), (48, 64, 3)).copy()
+        k = np.full((48, 64), 280.0, np.float32)
+        rec = model.record(0, sky, thermal.band_radiance(k).astype(np.float32), k).rgb8.astype(float)
+        return float(np.median(rec[..., 2] - rec[..., 0]))
+
+    plain, vivid = chroma(None), chroma(1.8)
+    assert plain > 10 and vivid == pytest.approx(1.8 * plain, abs=2.0)
