@@ -4,7 +4,8 @@ a reference computed in the same run on the same frames:
 - plateau equalisation (agc: plateau) vs the plain histogram equalisation (agc: histogram);
 - the local-contrast step's halo-free base (agc_base_opening_px 21, the sim2real drone camera's) vs its
   Gaussian base (sigma 15 px), both at that camera's 320x256 (every other pixel of the same frames);
-- the camcorder tone (tone: camcorder) vs the fixed sRGB look-up (tone: srgb);
+- the camcorder tone (tone: camcorder) vs the fixed sRGB look-up (tone: srgb), and with its colour level
+  (colour_gain 1.5) vs without;
 - the H.264 recording stage (camera_rig.recording) for an RGB and a grey frame vs writing the same
   frame as PNG (simulator.formats.native.write_png, which every native render already does);
 - the thermal camera's record step (radiance -> kelvin, counts, 8-bit) with the per-pixel gain residual
@@ -80,6 +81,7 @@ def main() -> None:
                             base_opening_px=21)
     counts_320 = [np.ascontiguousarray(c[::2, ::2]) for c in counts]
     camcorder = CamcorderExposure(1 / 4095, 4095, 0.25, 0.9, 0.85, 0.25)
+    vivid = CamcorderExposure(1 / 4095, 4095, 0.25, 0.9, 0.85, 0.25, colour_gain=1.5)
     srgb_lut = np.arange(4096, dtype=np.uint16).astype(np.uint8)
     rgb8 = [camcorder(x) for x in levels]
     grey8 = [plateau(c) for c in counts]
@@ -98,6 +100,8 @@ def main() -> None:
              _per_frame_ms(gaussian_320, counts_320)),
             ("camcorder AE + tone (RGB)", _per_frame_ms(camcorder, levels), "sRGB LUT",
              _per_frame_ms(lambda x: srgb_lut.take(x.ravel()).reshape(x.shape), levels)),
+            ("camcorder + colour gain", _per_frame_ms(vivid, levels), "camcorder",
+             _per_frame_ms(camcorder, levels)),
             ("H.264 encode+decode RGB", _per_frame_ms(rgb_stream, rgb8), "PNG write RGB",
              _per_frame_ms(lambda x: write_png(Path(tmp) / "a.png", x), rgb8)),
             ("H.264 encode+decode grey", _per_frame_ms(grey_stream, grey8), "PNG write grey",

@@ -208,7 +208,9 @@ def scale_chroma(rgb: np.ndarray, gain: float) -> np.ndarray:
     """Gamma-encoded RGB (H, W, 3, float, 0-255) with its chroma (Cb, Cr: each channel's difference to the
     BT.709 luma Y' = 0.2126 R' + 0.7152 G' + 0.0722 B') multiplied by ``gain``, luma kept, clipped to [0, 255];
     a grey pixel is unchanged. What a camcorder's colour level does to its Y'CbCr before the encoder."""
-    luma = np.tensordot(rgb, np.asarray(LUMA_709, np.float32), axes=([2], [0])).astype(np.float32)
-    out = rgb * np.float32(gain)
-    out += (np.float32(1.0 - gain) * luma)[..., None]
+    import cv2
+
+    luma = np.asarray(LUMA_709, np.float64)
+    matrix = gain * np.eye(3) + (1.0 - gain) * np.tile(luma, (3, 1))    # out = gain x rgb + (1 - gain) x Y'
+    out = cv2.transform(np.ascontiguousarray(rgb, np.float32), matrix.astype(np.float32))
     return np.clip(out, 0.0, 255.0, out=out)
