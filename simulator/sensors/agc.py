@@ -179,6 +179,7 @@ class CamcorderExposure:
     max_factor: float = 8.0
     colour_gain: float | None = None
     _log_factor: float | None = field(default=None, repr=False)
+    _work: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)   # colour-gain buffers
 
     def factor(self, level: np.ndarray) -> float:
         """Update and return the exposure factor from one frame's ADC levels (H, W, 3)."""
@@ -200,11 +201,15 @@ class CamcorderExposure:
         curve = bt709_knee(np.arange(self.levels + 1) * scale, self.knee_point, self.knee_slope) * 255.0
         if self.colour_gain is None:
             return np.rint(curve).astype(np.uint8).take(level.ravel()).reshape(level.shape)
-        tone = curve.astype(np.float32).take(level.ravel()).reshape(level.shape)
-        return np.rint(scale_chroma(tone, self.colour_gain)).astype(np.uint8)
+        if self._work is None or self._work[0].shape != level.shape:   # reused: a fresh 4 MB per frame page-faults
+            self._work = (np.empty(level.shape, np.float32), np.empty(level.shape, np.float32))
+        tone, out = self._work
+        curve.astype(np.float32).take(level, out=tone)
+        out = scale_chroma(tone, self.colour_gain, out=out)
+        return np.rint(out, out=out).astype(np.uint8)
 
 
-def scale_chroma(rgb: np.ndarray, gain: float) -> np.ndarray:
+def scale_chroma(rgb: np.ndarray, gain: float, out: np.ndarray | None = None) -> np.ndarray:
     """Gamma-encoded RGB (H, W, 3, float, 0-255) with its chroma (Cb, Cr: each channel's difference to the
     BT.709 luma Y' = 0.2126 R' + 0.7152 G' + 0.0722 B') multiplied by ``gain``, luma kept, clipped to [0, 255];
     a grey pixel is unchanged. What a camcorder's colour level does to its Y'CbCr before the encoder."""
@@ -212,5 +217,5 @@ def scale_chroma(rgb: np.ndarray, gain: float) -> np.ndarray:
 
     luma = np.asarray(LUMA_709, np.float64)
     matrix = gain * np.eye(3) + (1.0 - gain) * np.tile(luma, (3, 1))    # out = gain x rgb + (1 - gain) x Y'
-    out = cv2.transform(np.ascontiguousarray(rgb, np.float32), matrix.astype(np.float32))
+    out = cv2.transform(np.ascontiguousarray(rgb, np.float32), matrix.astype(np.float32), dst=out)
     return np.clip(out, 0.0, 255.0, out=out)
