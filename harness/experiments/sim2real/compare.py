@@ -46,75 +46,66 @@ def write_predictions(path: Path, y: np.ndarray, clip: np.ndarray, conditions: S
                       predicted: np.ndarray) -> None:
     """Write (atomically) ``predicted`` (conditions x seeds x crops class indices) for the crops of
     classes ``y`` and clips ``clip``."""
-    from simulator.files import write_atomic
-
     predicted = np.asarray(predicted)
     if predicted.shape != (len(conditions), len(seeds), len(y)):
         raise ValueError(f"predicted has shape {predicted.shape}, expected {(len(conditions), len(seeds), len(y))}")
-    buf = io.BytesIO()
-    np.savez_compressed(buf, format_version=np.int64(FORMAT_VERSION), y=np.asarray(y, np.int64),
-                        clip=np.asarray(clip, str), conditions=np.asarray(list(conditions), str),
-                        seeds=np.asarray(list(seeds), np.int64), predicted=predicted.astype(np.int16))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, buf.getvalue())
+    _write_npz(path, format_version=np.int64(FORMAT_VERSION), y=np.asarray(y, np.int64), clip=np.asarray(clip, str),
+               conditions=np.asarray(list(conditions), str), seeds=np.asarray(list(seeds), np.int64),
+               predicted=predicted.astype(np.int16))
 
 
 def read_predictions(path: Path, field: str = "run") -> dict[str, Any]:
     """The arrays of :func:`write_predictions`; a missing or unreadable file is a ``UserInputError``
     naming ``field``."""
-    from scenes.errors import UserInputError
-
-    if not path.is_file():
-        raise UserInputError(f"{field}: {str(path.parent.parent)!r} holds no {PREDICTIONS_DIR}/{path.name} (a run of "
-                             f"`evids sim2real` from before predictions were kept, an audio-only run, or not a run "
-                             f"folder): rerun it")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
-        raise UserInputError(f"{field}: {str(path)!r} is not a predictions file ({exc})") from None
-    if int(data.get("format_version", -1)) != FORMAT_VERSION:
-        raise UserInputError(f"{field}: {str(path)!r} has predictions format {data.get('format_version')}, "
-                             f"this version reads {FORMAT_VERSION}")
-    return data
+    return _read_npz(path, field, "predictions", FORMAT_VERSION, "an audio-only run")
 
 
 def write_audio_scores(path: Path, y: np.ndarray, clip: Sequence[str] | np.ndarray, cls: Sequence[str] | np.ndarray,
                        models: Sequence[str], conditions: Sequence[str], seeds: Sequence[int], scores: Any) -> None:
     """Write (atomically) the audio track's drone ``scores`` (models x conditions x seeds x windows) for the
     evaluation windows of labels ``y`` (1 = drone), recordings ``clip`` and classes ``cls``."""
-    from simulator.files import write_atomic
-
     scores = np.asarray(scores)
     shape = (len(models), len(conditions), len(seeds), len(y))
     if scores.shape != shape or len(clip) != len(y) or len(cls) != len(y):
         raise ValueError(f"scores has shape {scores.shape}, expected {shape} (and one clip and class per window)")
-    buf = io.BytesIO()
-    np.savez_compressed(buf, format_version=np.int64(AUDIO_FORMAT_VERSION), y=np.asarray(y, np.int64),
-                        clip=np.asarray(list(clip), str), cls=np.asarray(list(cls), str),
-                        models=np.asarray(list(models), str), conditions=np.asarray(list(conditions), str),
-                        seeds=np.asarray(list(seeds), np.int64), scores=scores.astype(np.float32))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, buf.getvalue())
+    _write_npz(path, format_version=np.int64(AUDIO_FORMAT_VERSION), y=np.asarray(y, np.int64),
+               clip=np.asarray(list(clip), str), cls=np.asarray(list(cls), str), models=np.asarray(list(models), str),
+               conditions=np.asarray(list(conditions), str), seeds=np.asarray(list(seeds), np.int64),
+               scores=scores.astype(np.float32))
 
 
 def read_audio_scores(path: Path, field: str = "run") -> dict[str, Any]:
     """The arrays of :func:`write_audio_scores`; a missing or unreadable file is a ``UserInputError``
     naming ``field``."""
+    return _read_npz(path, field, "audio scores", AUDIO_FORMAT_VERSION, "a run without audio")
+
+
+def _write_npz(path: Path, **arrays: Any) -> None:
+    from simulator.files import write_atomic
+
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, buf.getvalue())
+
+
+def _read_npz(path: Path, field: str, kind: str, version: int, absent_because: str) -> dict[str, Any]:
+    """The arrays of a kept ``kind`` file of format ``version``; missing, unreadable or of another version: a
+    ``UserInputError`` naming ``field``."""
     from scenes.errors import UserInputError
 
     if not path.is_file():
         raise UserInputError(f"{field}: {str(path.parent.parent)!r} holds no {PREDICTIONS_DIR}/{path.name} (a run of "
-                             f"`evids sim2real` from before audio scores were kept, a run without audio, or not a run "
+                             f"`evids sim2real` from before {kind} were kept, {absent_because}, or not a run "
                              f"folder): rerun it")
     try:
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
-        raise UserInputError(f"{field}: {str(path)!r} is not an audio scores file ({exc})") from None
-    if int(data.get("format_version", -1)) != AUDIO_FORMAT_VERSION:
-        raise UserInputError(f"{field}: {str(path)!r} has audio scores format {data.get('format_version')}, "
-                             f"this version reads {AUDIO_FORMAT_VERSION}")
+        raise UserInputError(f"{field}: {str(path)!r} is not a {kind} file ({exc})") from None
+    if int(data.get("format_version", -1)) != version:
+        raise UserInputError(f"{field}: {str(path)!r} has {kind} format {data.get('format_version')}, "
+                             f"this version reads {version}")
     return data
 
 
@@ -165,8 +156,9 @@ def compare_audio(before: dict[str, Any], after: dict[str, Any], *, bootstrap: i
             sb, sa = before["scores"][mb, names_b.index(name)], after["scores"][ma, names_a.index(name)]
             samples = np.array([auc(sa, i) - auc(sb, i) for i in draws])
             lo, hi = np.percentile(samples, [2.5, 97.5])
-            rows[name] = {"label": CONDITION_LABELS.get(name, name), "before": auc(sb, slice(None)),
-                          "after": auc(sa, slice(None)), "difference": auc(sa, slice(None)) - auc(sb, slice(None)),
+            b_auc, a_auc = auc(sb, slice(None)), auc(sa, slice(None))
+            rows[name] = {"label": CONDITION_LABELS.get(name, name), "before": b_auc, "after": a_auc,
+                          "difference": a_auc - b_auc,
                           "ci_low": float(lo), "ci_high": float(hi),
                           "mde": float(Z_MDE * samples.std(ddof=1)) if samples.size > 2 else float("nan"),
                           "helicopter_called_drone": [called(sb, "HELICOPTER"), called(sa, "HELICOPTER")],
