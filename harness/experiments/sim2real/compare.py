@@ -264,14 +264,18 @@ def _recall_line(names: Sequence[str], before: Sequence[float | None], after: Se
 def format_comparison(result: dict[str, Any]) -> str:
     """The comparison as a printed table, one block per sensor."""
     lines = [f"after:  {result['after']}", f"before: {result['before']}"]
+    width = max([len(c["label"]) for res in result["sensors"].values() for c in res["conditions"].values()]
+                + [len(c["label"]) for rows in result.get("audio", {}).get("models", {}).values()
+                   for c in rows.values()] + [1])
     for sensor, res in result["sensors"].items():
         lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({res['n_test_clips']} clips, "
                      f"{res['n_test_crops']} crops), after - before, paired ({result['bootstrap']} clip resamples)")
         for c in res["conditions"].values():
-            lines.append(f"  {c['label']:38s} {c['before']:.3f} -> {c['after']:.3f}  {100 * c['difference']:+5.1f} "
+            lines.append(f"  {c['label']:{width}s} {c['before']:.3f} -> {c['after']:.3f}  "
+                         f"{100 * c['difference']:+5.1f} "
                          f"[{100 * c['ci_low']:+5.1f}, {100 * c['ci_high']:+5.1f}] pt, MDE {100 * c['mde']:.1f}")
             if "recall_before" in c:
-                lines.append(f"  {'':38s} {_recall_line(res['classes'], c['recall_before'], c['recall_after'])} %")
+                lines.append(f"  {'':{width}s} {_recall_line(res['classes'], c['recall_before'], c['recall_after'])} %")
     if "audio" in result:
         res = result["audio"]
         lines.append(f"audio: drone ROC-AUC on the real evaluation half ({res['n_test_clips']} recordings, "
@@ -280,11 +284,11 @@ def format_comparison(result: dict[str, Any]) -> str:
         for model, rows in res["models"].items():
             for c in rows.values():
                 interval = f"[{100 * c['ci_low']:+5.1f}, {100 * c['ci_high']:+5.1f}]"
-                lines.append(f"  {model:6s} {c['label']:38s} {c['before']:.3f} -> {c['after']:.3f}  "
+                lines.append(f"  {model:6s} {c['label']:{width}s} {c['before']:.3f} -> {c['after']:.3f}  "
                              f"{100 * c['difference']:+5.1f} {interval} pt, MDE {100 * c['mde']:.1f}")
                 called = [(k.split("_")[0], v) for k, v in c.items() if k.endswith("_called_drone") and None not in v]
                 if called:
-                    lines.append(f"  {'':6s} {'':38s} called drone: " + ", ".join(
+                    lines.append(f"  {'':6s} {'':{width}s} called drone: " + ", ".join(
                         f"{n} {100 * b:.0f} -> {100 * a:.0f} %" for n, (b, a) in called))
     lines += [f"  skipped {s}" for s in result["skipped"]]
     return "\n".join(lines)
