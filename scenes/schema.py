@@ -40,6 +40,17 @@ def omit_when_unset(data: object, names: tuple[str, ...]) -> object:
     return data
 
 
+class OmitWhenUnset(BaseModel):
+    """Mixin: a model that lists fields in ``_OMIT_WHEN_UNSET`` leaves them out of every dump while they are
+    None (:func:`omit_when_unset`)."""
+
+    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ()
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
+
+
 #: a name used as one path component (scene names become output folder names)
 PLAIN_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,127}$"
 PlainName = Annotated[str, Field(pattern=PLAIN_NAME_PATTERN, min_length=1, max_length=128,
@@ -164,7 +175,7 @@ class Sun(_Model):
         return self
 
 
-class Clouds(_Model):
+class Clouds(_Model, OmitWhenUnset):
     coverage: float = Field(ge=0.0, le=1.0)
     altitude_m: float = Field(default=2000.0, gt=0.0)
     scale_deg: float = Field(default=20.0, gt=0.0, description="typical cloud size on the sky")
@@ -175,10 +186,6 @@ class Clouds(_Model):
 
     #: fields added after the scenario format froze, left out of scenario.yaml while unset
     _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("edge_width_sd",)
-
-    @model_serializer(mode="wrap")
-    def _dump(self, handler):
-        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
 
 
 class Sky(_Model):
@@ -258,7 +265,7 @@ class CameraIntrinsics(_Model):
                                     "human annotators draw boxes; the exact box stays in box_tight. (0, 0) = exact")
 
 
-class RgbCamera(CameraIntrinsics):
+class RgbCamera(CameraIntrinsics, OmitWhenUnset):
     """Visible camera model (simulator/sensors/camera.py). Defaults: a typical 1/2.3-inch CMOS
     (6.17 mm wide, 1.55 um native pixels) behind an f/2.8 lens; the output pixel averages the
     native pixels it covers. exposure_time_s None = auto exposure capped at one frame period."""
@@ -291,10 +298,6 @@ class RgbCamera(CameraIntrinsics):
     #: fields added after the scenario format froze, left out of scenario.yaml while unset
     _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("colour_gain",)
 
-    @model_serializer(mode="wrap")
-    def _dump(self, handler):
-        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
-
     @model_validator(mode="after")
     def _colour_gain_needs_camcorder(self) -> "RgbCamera":
         if self.colour_gain is not None and self.tone != "camcorder":
@@ -302,7 +305,7 @@ class RgbCamera(CameraIntrinsics):
         return self
 
 
-class ThermalCamera(CameraIntrinsics):
+class ThermalCamera(CameraIntrinsics, OmitWhenUnset):
     """Uncooled LWIR microbolometer model. Defaults: a 640x512, 12 um pixel core behind an f/1.0
     lens, NETD 40 mK, time constant 10 ms, small residual column fixed-pattern noise after a
     shutter NUC; radiometric 16-bit counts T = counts * kelvin_per_count and an 8-bit AGC view."""
@@ -350,10 +353,6 @@ class ThermalCamera(CameraIntrinsics):
 
     #: fields added after the scenario format froze, left out of scenario.yaml while unset
     _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("agc_mean_level", "agc_base_opening_px", "fpn_pixel_gain")
-
-    @model_serializer(mode="wrap")
-    def _dump(self, handler):
-        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
 
     @model_validator(mode="after")
     def _counts_cover_scene(self) -> "ThermalCamera":

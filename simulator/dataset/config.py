@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from scenes.kinds import DRONE_KINDS, DRONE_SIZE_M, MAX_BANK_DEG
 from scenes.loader import GENERATION_DIR
@@ -21,6 +21,7 @@ from scenes.sampling import Span, at, direction, pick, pick_at, target_size
 from scenes.schema import (
     Flyby,
     Hover,
+    OmitWhenUnset,
     Orbit,
     Recording,
     RgbCamera,
@@ -29,7 +30,6 @@ from scenes.schema import (
     Terrain,
     ThermalCamera,
     Waypoints,
-    omit_when_unset,
 )
 from simulator.physics.trajectory import min_orbit_radius_m
 from simulator.seeding import rng_for
@@ -179,7 +179,7 @@ _CLOSED_BOUNDS: dict[str, tuple[float, float, str]] = {
 }
 
 
-class Randomisation(_Model):
+class Randomisation(_Model, OmitWhenUnset):
     """Ranges applied on top of each mixture scenario; a field left null keeps the preset's value.
 
     ``range_m``/``trajectory_kinds`` replace the primary drone's trajectory (the camera then tracks
@@ -250,10 +250,6 @@ class Randomisation(_Model):
     #: fields added after the dataset format froze, left out of the dump while unset: a config without
     #: them keeps its manifest bytes and ``dataset_id`` (an older dataset folder resumes)
     _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("multirotor_frame_warming_k", "sensor", "paint_reflectance")
-
-    @model_serializer(mode="wrap")
-    def _dump(self, handler):
-        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
 
     @model_validator(mode="after")
     def _checks(self) -> "Randomisation":

@@ -33,9 +33,9 @@ from __future__ import annotations
 from typing import ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
+from pydantic import ConfigDict, Field, model_validator
 
-from scenes.schema import omit_when_unset
+from scenes.schema import OmitWhenUnset
 from simulator.seeding import rng_for
 
 RECORDER_STREAM_INDEX = 3000
@@ -43,7 +43,7 @@ AGC_BLOCK_S = 0.05
 Span = tuple[float, float]
 
 
-class RecorderConfig(BaseModel):
+class RecorderConfig(OmitWhenUnset):
     """The recording chain; spans (low, high) are drawn uniformly per clip."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -82,10 +82,6 @@ class RecorderConfig(BaseModel):
 
     #: fields added after TRIDENT manifests froze, left out of dumps (and their hashes) while unset
     _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("agc_detector",)
-
-    @model_serializer(mode="wrap")
-    def _dump(self, handler):
-        return omit_when_unset(handler(self), self._OMIT_WHEN_UNSET)
 
     @model_validator(mode="after")
     def _spans(self) -> RecorderConfig:
