@@ -237,8 +237,8 @@ def compare_runs(before: Path, after: Path, *, sensors: Sequence[str] = VISUAL_S
                                                    bootstrap=bootstrap, rng_seed=rng_seed, sensor=sensor,
                                                    classes=_run_classes(before, sensor))
     if not result["sensors"] and "audio" not in result:
+        kept = [*sensors, AUDIO] if audio else list(sensors)
         for field, run in (("--before", before), ("--after", after)):
-            kept = [*sensors, AUDIO] if audio else list(sensors)
             if not any(predictions_path(run, s).is_file() for s in kept):
                 raise UserInputError(f"{field}: {str(run)!r} holds no {PREDICTIONS_DIR}/ files ({', '.join(kept)}: a "
                                      f"run of `evids sim2real` from before predictions were kept, or not a run "
