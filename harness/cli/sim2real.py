@@ -18,6 +18,11 @@ def sim2real(
     strict: bool = typer.Option(False, "--strict", help="Stop at the first real clip that fails the reader's checks "
                                 "(default: skip it and list it in OUT/skipped.txt)."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress bars."),
+    tune: bool = typer.Option(False, "--tune", help="Measure on the real CALIBRATION half only, to judge a "
+                              "simulator change before the one evaluation run: the evaluation half is not read; "
+                              "classifiers are cross-fitted over two folds of calibration clips (runs of 5 "
+                              "consecutive clip numbers), statistics use the calibration IQR, the audio track "
+                              "tests one fold. Compare two such runs with `evids sim2real-compare`."),
 ) -> None:
     """Generate the synthetic counterpart of the real benchmark (same sensors, resolutions, classes and box
     sizes), then measure the gap on the real EVALUATION half (even clip numbers; the odd calibration half
@@ -27,6 +32,7 @@ def sim2real(
     OUT/sim2real.html and contact sheets.
 
     Example: evids sim2real --real ~/data/Drone-detection-dataset --out out/sim2real
+    Tuning:  evids sim2real --real ~/data/Drone-detection-dataset --tune --out out/s2r_tune_main
     """
     from harness.experiments.sim2real.config import DEFAULT_CONFIG
     from harness.experiments.sim2real.harness import format_table, run_sim2real
@@ -42,7 +48,7 @@ def sim2real(
     create_run_folder(out, inputs=[real, cfg_path])
     with DatasetLock(out, "sim2real"):
         summary = run_sim2real(real, out, config_path=cfg_path, quick=quick, strict=strict, progress=progress,
-                               log=typer.echo)
+                               log=typer.echo, tune=tune)
     typer.echo(format_table(summary))
     typer.echo(f"report: {out / 'sim2real.html'}")
 

@@ -193,6 +193,13 @@ def section_html(run_dir: Path, summary: dict[str, Any]) -> str:
              "<p class='note'>Split rule: real clips with an odd number are the calibration half (training, fitting, "
              "looking); even numbers the evaluation half (every number below). Real clips skipped by the reader's "
              f"checks: {len(summary.get('skipped_clips', []))}.</p>"]
+    if summary.get("test_half") == "calibration":
+        parts.append("<p class='note'><b>Tuning run (<code>--tune</code>): the evaluation half was not read.</b> "
+                     "Every figure called 'evaluation' below is the real calibration half: crop classifiers "
+                     "cross-fitted over its two folds (runs of 5 consecutive clip numbers; each fold scored by models "
+                     "trained on the other), statistics against its own IQR (the 'synthetic median inside' column), "
+                     "the synthetic-trained detector scored on it (no real-trained one); audio: fold 0 tested, fold 1 "
+                     "trained. Judge a change with two such runs, then make the one evaluation run.</p>")
     failures = summary.get("synthetic_failures") or {}
     if failures:
         parts.append("<p class='note'><b>Synthetic sequences that failed to render and are left out:</b> "

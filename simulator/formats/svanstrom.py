@@ -70,6 +70,18 @@ def split_of(number: int) -> Half:
     return "calibration" if number % 2 == 1 else "evaluation"
 
 
+TUNING_BLOCK_CLIPS = 5
+
+
+def tuning_fold(number: int) -> int:
+    """The fold (0 or 1) of a calibration clip when the calibration half is split in two to tune on it
+    (``evids sim2real --tune``): runs of ``TUNING_BLOCK_CLIPS`` consecutive odd numbers alternate (1-9
+    fold 0, 11-19 fold 1, ...), so neighbouring clips, often one recording session, stay on one side."""
+    if number % 2 != 1:
+        raise ValueError(f"number: {number} is an evaluation clip (even); only calibration clips have a tuning fold")
+    return ((number - 1) // 2 // TUNING_BLOCK_CLIPS) % 2
+
+
 @dataclass(frozen=True)
 class Clip:
     """One clip of the benchmark; paths are relative to the ``Data/`` folder."""

@@ -74,11 +74,14 @@ class AudioClip:
         self.samples = np.asarray(self.samples, dtype=np.float32).reshape(-1)
 
 
-def real_audio_clips(bench) -> list[AudioClip]:
-    """Every audio clip of a ``simulator.formats.svanstrom.SvanstromBenchmark`` as an AudioClip
-    (mono float32, the benchmark's odd/even split as the half)."""
+def real_audio_clips(bench, half: str | None = None) -> list[AudioClip]:
+    """Every audio clip of a ``simulator.formats.svanstrom.SvanstromBenchmark`` (or only those of
+    ``half``: the others are not read) as an AudioClip (mono float32, the benchmark's odd/even split as
+    the half)."""
     clips = []
     for clip in bench.clips("audio"):
+        if half is not None and clip.half != half:
+            continue
         samples, sr = bench.audio(clip)
         clips.append(AudioClip(clip.name, clip.cls, clip.number, samples, int(sr), clip.half))
     return clips

@@ -9,6 +9,9 @@ larger synthetic set does not drown the real crops (:func:`domain_balanced_weigh
 is trained with every training seed; its figure is the mean over seeds of
 the balanced accuracy, and its 95 % interval comes from a clip bootstrap of the evaluation half
 (the same clip draws for every seed and condition, so ratios and differences are paired).
+Tuning on the calibration half (``evids sim2real --tune``) cross-fits instead (:class:`CrossFit`): the
+calibration clips split in two folds, each fold's crops scored by models trained on the other fold
+(and on the synthetic crops), so every crop is scored by a model that never saw its clip.
 """
 from __future__ import annotations
 
@@ -209,6 +212,41 @@ def predict(net, x: np.ndarray, batch_size: int = 1024) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros((0, 0), np.float32)
 
 
+@dataclass
+class CrossFit:
+    """Cross-fitting: ``sets[k]`` are the training sets (condition -> crops) whose models score the test
+    crops of ``held_out[k]`` (boolean masks over the test crops, together a partition). A condition
+    whose set is the same object in several folds is trained once and scores all their crops."""
+
+    sets: list[dict[str, CropSet]]
+    held_out: list[np.ndarray]
+
+    def __post_init__(self) -> None:
+        if not self.sets or len(self.sets) != len(self.held_out):
+            raise ValueError("sets and held_out: one mask per fold, at least one fold")
+        masks = np.stack([np.asarray(m, bool) for m in self.held_out])
+        if not np.all(masks.sum(axis=0) == 1):
+            raise ValueError("held_out: every test crop must be held out by exactly one fold")
+        names = [list(fold) for fold in self.sets]
+        if any(n != names[0] for n in names):
+            raise ValueError("sets: every fold needs the same conditions, in the same order")
+
+    def units(self) -> list[tuple[str, CropSet, np.ndarray]]:
+        """(condition, training set, held-out mask) per model to train: folds sharing a set merged."""
+        out: list[tuple[str, CropSet, np.ndarray]] = []
+        for name in self.sets[0]:
+            seen: dict[int, int] = {}
+            for fold, mask in zip(self.sets, self.held_out):
+                key = id(fold[name])
+                if key in seen:
+                    k = seen[key]
+                    out[k] = (name, out[k][1], out[k][2] | np.asarray(mask, bool))
+                else:
+                    seen[key] = len(out)
+                    out.append((name, fold[name], np.asarray(mask, bool).copy()))
+        return out
+
+
 def _interval(res) -> dict[str, float]:
     return {"estimate": res.estimate, "ci_low": res.ci_low, "ci_high": res.ci_high}
 
@@ -230,7 +268,8 @@ def _condition_job(name: str, seed: int) -> tuple[np.ndarray, np.ndarray | None]
     return test, None
 
 
-def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int, *, seeds: Sequence[int], steps: int,
+def evaluate_conditions(sets: dict[str, CropSet] | CrossFit, test: CropSet, n_classes: int, *, seeds: Sequence[int],
+                        steps: int,
                         batch_size: int, learning_rate: float, bootstrap: int, rng_seed: int, workers: int = 1,
                         label: str | None = None, reverse: CropSet | None = None,
                         predictions: Path | None = None) -> dict[str, Any]:
@@ -241,14 +280,21 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
     per-class recall and confusion (rows the synthetic class, columns what the real-trained model
     calls it), the mirror image of (b)'s confusion on the real crops. With ``predictions`` (a path), every
     condition's predicted classes on ``test`` are kept there for paired before / after comparisons of two
-    runs (``harness.experiments.sim2real.compare``)."""
+    runs (``harness.experiments.sim2real.compare``). ``sets`` may be a :class:`CrossFit` (tuning): every
+    fold's models score its held-out crops; the reverse transfer then uses the first fold's (a) models."""
     from harness.experiments.pipeline import forked_map
 
-    jobs = [(name, int(seed)) for name, train in sets.items() if len(train.y) for seed in seeds]
-    with_reverse = reverse is not None and len(reverse.y) > 0 and "a_real" in sets and len(sets["a_real"].y) > 0
-    context = dict(sets=sets, test=test, n_classes=n_classes,
+    fit = sets if isinstance(sets, CrossFit) else CrossFit([sets], [np.ones(len(test.y), bool)])
+    # one unit per model to train: a condition's set in one or more folds; empty sets are left out
+    units = [(f"{name}#{k}", name, train, mask) for k, (name, train, mask) in enumerate(fit.units())]
+    empty = {name for _, name, train, _ in units if not len(train.y)}
+    units = [u for u in units if u[1] not in empty]    # a condition empty in any fold is left out entirely
+    jobs = [(key, int(seed)) for key, _, _, _ in units for seed in seeds]
+    first_a = next((key for key, name, _, _ in units if name == "a_real"), None)
+    with_reverse = reverse is not None and len(reverse.y) > 0 and first_a is not None
+    context = dict(sets={key: train for key, _, train, _ in units}, test=test, n_classes=n_classes,
                    train=dict(steps=steps, batch_size=batch_size, learning_rate=learning_rate),
-                   reverse=("a_real", reverse) if with_reverse else None)
+                   reverse=(first_a, reverse) if with_reverse else None)
     done: dict[tuple[str, int], np.ndarray] = {}
     reverse_preds: dict[int, np.ndarray] = {}
     for i, (p, on_reverse) in forked_map(_condition_job, jobs, workers, label, context=context):
@@ -257,8 +303,14 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
             reverse_preds[jobs[i][1]] = on_reverse
     preds: dict[str, np.ndarray] = {}      # condition -> (n_seeds, n_test) predicted class
     per_seed: dict[str, list[float]] = {}
-    for name in dict.fromkeys(n for n, _ in jobs):
-        rows = [done[(name, int(seed))] for seed in seeds]
+    for name in dict.fromkeys(name for _, name, _, _ in units):
+        rows = []
+        for seed in seeds:
+            row = np.zeros(len(test.y), np.int64)
+            for key, unit_name, _, mask in units:
+                if unit_name == name:
+                    row[mask] = done[(key, int(seed))][mask]
+            rows.append(row)
         preds[name] = np.stack(rows)
         per_seed[name] = [balanced_accuracy(test.y, r) for r in rows]
     names = list(preds)
@@ -275,8 +327,13 @@ def evaluate_conditions(sets: dict[str, CropSet], test: CropSet, n_classes: int,
     data = stacked.transpose(1, 0, 2)
     out: dict[str, Any] = {"conditions": {}, "n_test_clips": int(np.unique(test.clip).size),
                            "n_test_crops": int(len(test.y)),
-                           "train_sizes": {n: int(len(s.y)) for n, s in sets.items()},
-                           "train_clips": {n: int(np.unique(s.clip).size) for n, s in sets.items()}}
+                           "train_sizes": {n: int(len(s.y)) for n, s in fit.sets[0].items()},
+                           "train_clips": {n: int(np.unique(s.clip).size) for n, s in fit.sets[0].items()}}
+    if len(fit.sets) > 1:
+        out["cross_fit"] = {"folds": len(fit.sets),
+                            "test_crops": [int(np.sum(m)) for m in fit.held_out],
+                            "train_sizes": [{n: int(len(s.y)) for n, s in f.items()} for f in fit.sets],
+                            "train_clips": [{n: int(np.unique(s.clip).size) for n, s in f.items()} for f in fit.sets]}
     for k, name in enumerate(names):
         res = clustered_bootstrap(mean_balacc(k), test.y, data, clusters=test.clip, rng=rng_seed, n_resamples=bootstrap)
         out["conditions"][name] = {"label": CONDITION_LABELS[name], **_interval(res), "per_seed": per_seed[name],

@@ -217,8 +217,12 @@ def compare_runs(before: Path, after: Path, *, sensors: Sequence[str] = VISUAL_S
     nothing in common is a ``UserInputError``."""
     from scenes.errors import UserInputError
 
+    halves = {field: _test_half(run) for field, run in (("--before", before), ("--after", after))}
+    if halves["--before"] != halves["--after"]:
+        raise UserInputError(f"--before / --after: one run was tested on the real {halves['--before']} half, the "
+                             f"other on the {halves['--after']} half (`--tune`): compare runs of the same kind")
     result: dict[str, Any] = {"before": str(before), "after": str(after), "bootstrap": int(bootstrap),
-                              "sensors": {}, "skipped": []}
+                              "test_half": halves["--before"], "sensors": {}, "skipped": []}
     if audio:
         ab, aa = predictions_path(before, AUDIO), predictions_path(after, AUDIO)
         if ab.is_file() and aa.is_file():
@@ -247,6 +251,15 @@ def compare_runs(before: Path, after: Path, *, sensors: Sequence[str] = VISUAL_S
     return result
 
 
+def _test_half(run: Path) -> str:
+    """Which real half a run's classifiers were tested on: "calibration" for ``evids sim2real --tune``,
+    else (and for runs from before the field existed, or without a readable summary) "evaluation"."""
+    try:
+        return str(json.loads((Path(run) / "sim2real.json").read_text()).get("test_half", "evaluation"))
+    except (OSError, ValueError, AttributeError):
+        return "evaluation"
+
+
 def _run_classes(run: Path, sensor: str) -> list[str] | None:
     """The class names a run's summary lists for ``sensor`` (None when it has none to give)."""
     try:
@@ -261,14 +274,18 @@ def _recall_line(names: Sequence[str], before: Sequence[float | None], after: Se
                                  if b is not None and a is not None)
 
 
+_HALF_WORDS = {"evaluation": "evaluation half", "calibration": "calibration half (--tune: cross-fitted)"}
+
+
 def format_comparison(result: dict[str, Any]) -> str:
     """The comparison as a printed table, one block per sensor."""
     lines = [f"after:  {result['after']}", f"before: {result['before']}"]
+    half = _HALF_WORDS[result.get("test_half", "evaluation")]
     width = max([len(c["label"]) for res in result["sensors"].values() for c in res["conditions"].values()]
                 + [len(c["label"]) for rows in result.get("audio", {}).get("models", {}).values()
                    for c in rows.values()] + [1])
     for sensor, res in result["sensors"].items():
-        lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({res['n_test_clips']} clips, "
+        lines.append(f"{sensor}: balanced accuracy on the real {half} ({res['n_test_clips']} clips, "
                      f"{res['n_test_crops']} crops), after - before, paired ({result['bootstrap']} clip resamples)")
         for c in res["conditions"].values():
             lines.append(f"  {c['label']:{width}s} {c['before']:.3f} -> {c['after']:.3f}  "
@@ -278,7 +295,7 @@ def format_comparison(result: dict[str, Any]) -> str:
                 lines.append(f"  {'':{width}s} {_recall_line(res['classes'], c['recall_before'], c['recall_after'])} %")
     if "audio" in result:
         res = result["audio"]
-        lines.append(f"audio: drone ROC-AUC on the real evaluation half ({res['n_test_clips']} recordings, "
+        lines.append(f"audio: drone ROC-AUC on the real {half} ({res['n_test_clips']} recordings, "
                      f"{res['n_test_windows']} windows), after - before, paired ({result['bootstrap']} recording "
                      f"resamples per class)")
         for model, rows in res["models"].items():

@@ -99,11 +99,13 @@ def _stat_summary(values: Sequence[float | None]) -> dict[str, float] | None:
     return {"median": float(q50), "q25": float(q25), "q75": float(q75), "n": int(v.size)}
 
 
-def statistics_table(samples: list[FrameSample], clips: list[ClipSummary], sensor: str, classes: list[str]) -> dict:
+def statistics_table(samples: list[FrameSample], clips: list[ClipSummary], sensor: str, classes: list[str],
+                     reference: str = "evaluation") -> dict:
     """Per class and statistic: real evaluation half, real calibration half and synthetic (median,
     IQR); ``inside`` says whether the synthetic median lies in the real evaluation half's IQR, and
     ``calibration_inside`` the same for the real calibration half's median: what a second set of real
-    clips reaches on the same test (the criterion's null reference)."""
+    clips reaches on the same test (the criterion's null reference). ``reference="calibration"``
+    (tuning): ``inside`` is against the calibration half's IQR and there is no null reference."""
     table: dict[str, dict] = {}
     groups = {"real_evaluation": ("real", "evaluation"), "real_calibration": ("real", "calibration"),
               "synthetic": ("synthetic", "synthetic")}
@@ -120,9 +122,9 @@ def statistics_table(samples: list[FrameSample], clips: list[ClipSummary], senso
                     vals = [s.stats.get(stat) for s in samples if s.sensor == sensor and s.cls == cls
                             and s.domain == domain and s.half == half]
                 row[key] = _stat_summary(vals)
-            real, syn = row["real_evaluation"], row["synthetic"]
+            real, syn = row[f"real_{reference}"], row["synthetic"]
             row["inside"] = None if not (real and syn) else bool(real["q25"] <= syn["median"] <= real["q75"])
-            cal = row["real_calibration"]
+            cal = row["real_calibration"] if reference == "evaluation" else None
             row["calibration_inside"] = (None if not (real and cal and syn)
                                          else bool(real["q25"] <= cal["median"] <= real["q75"]))
             table[cls][stat] = row
@@ -240,8 +242,12 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
 
 
 def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quick: bool = False, strict: bool = False,
-                 progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
-    """Run the whole protocol into ``out`` (see the module docstring); returns the summary."""
+                 progress: bool = True, log: Callable[[str], None] = print, tune: bool = False) -> dict[str, Any]:
+    """Run the whole protocol into ``out`` (see the module docstring); returns the summary. ``tune``: the
+    calibration half only (the evaluation half is not read): classifiers cross-fitted over its two
+    tuning folds (``svanstrom.tuning_fold``), statistics against its own IQR, the synthetic-trained
+    detector scored on it, the audio track's fold 0 tested, fold 1 training: what a change is judged by
+    before the one evaluation run."""
     # every module the run needs is imported here, before the long work: a module loaded lazily at
     # the end could come from a different version of the files than the rest of the run
     from harness.experiments.pipeline import forked_results
@@ -253,7 +259,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     from scenes.errors import UserInputError
     from simulator.dataset.driver import GenerationFailed
     from simulator.dataset.generate import generate_dataset
-    from simulator.formats.svanstrom import open_benchmark
+    from simulator.formats.svanstrom import open_benchmark, tuning_fold
     from simulator.seeding import rng_for
 
     t0 = time.time()
@@ -266,6 +272,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     summary: dict[str, Any] = {"config": cfg.model_dump(mode="json"), "quick": quick, "real": bench.where,
                                "split_rule": "odd clip numbers = calibration half (train, fit, look); "
                                              "even = evaluation half (reported numbers)",
+                               "test_half": "calibration" if tune else "evaluation",
                                "sensors": {}, "timings_s": {}}
     skipped: list[str] = []
     sensors = [v for s in cfg.sensors for v in VISUAL_SENSORS if v == s]    # the config's order, typed
@@ -274,7 +281,9 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     t = time.time()
     params = dict(frames_per_clip=vis.frames_per_real_clip, crop_px=vis.crop_px, context=vis.crop_context,
                   min_crop_px=vis.min_crop_px, seed=cfg.seed, keep=vis.detector_frames_per_clip)
-    calls = [(clip, params) for s in sensors for clip in bench.clips(s, classes=classes)]
+    calls = [(clip, params) for s in sensors
+             for clip in bench.clips(s, half="calibration" if tune else None, classes=classes)]
+    fold_of = {clip.name: tuning_fold(clip.number) for clip, _ in calls if clip.half == "calibration"}
     samples: list[FrameSample] = []
     clip_summaries: list[ClipSummary] = []
     results = _cached_real_samples(out, bench, calls, vis.workers, progress)
@@ -330,13 +339,19 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
         real_eval = [s for s in s_samples if s.domain == "real" and s.half == "evaluation"]
         synthetic = [s for s in s_samples if s.domain == "synthetic"]
         rng = rng_for(cfg.seed, "sim2real", 7, VISUAL_SENSORS.index(sensor))
-        few = classify.few_shot_clips(real_cal, tr.few_shot_fraction, rng)
-        set_a = classify.crop_set(real_cal, classes)
         set_b = classify.crop_set(synthetic, classes)
-        set_d = classify.crop_set([s for s in real_cal if s.clip in few], classes)
-        sets = {"a_real": set_a, "b_synthetic": set_b, "c_synthetic_plus_real": classify.concat(set_b, set_a),
-                "d_few_shot": set_d, "d_plus_few_shot_synthetic": classify.concat(set_b, set_d)}
-        test = classify.crop_set(real_eval, classes)
+        sets: dict[str, classify.CropSet] | classify.CrossFit
+        if tune:    # the calibration half scores itself, each fold by models trained on the other fold
+            test = classify.crop_set(real_cal, classes)
+            folds, held_out = [], []
+            for fold in (0, 1):
+                train_real = [s for s in real_cal if fold_of[s.clip] != fold]
+                folds.append(_condition_sets(train_real, set_b, classes, tr.few_shot_fraction, rng))
+                held_out.append(np.array([fold_of[c] == fold for c in test.clip], bool))
+            sets = classify.CrossFit(folds, held_out)
+        else:
+            sets = _condition_sets(real_cal, set_b, classes, tr.few_shot_fraction, rng)
+            test = classify.crop_set(real_eval, classes)
         cond = classify.evaluate_conditions(sets, test, len(classes), seeds=seeds, steps=steps,
                                             batch_size=tr.batch_size, learning_rate=tr.learning_rate,
                                             bootstrap=min(tr.bootstrap, 200) if quick else tr.bootstrap,
@@ -356,9 +371,11 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
             from harness.experiments.sim2real import detect
 
             s_clips = [c for c in clip_summaries if c.sensor == sensor]
-            train_sets = {"real": [c for c in s_clips if c.domain == "real" and c.half == "calibration"],
-                          "synthetic": [c for c in s_clips if c.domain == "synthetic"]}
-            detector = detect.run_detector(train_sets,
+            real_train = [c for c in s_clips if c.domain == "real" and c.half == "calibration"]
+            train_sets = {"real": real_train, "synthetic": [c for c in s_clips if c.domain == "synthetic"]}
+            if tune:    # the synthetic-trained detector on the calibration half; no real-trained one to divide by
+                train_sets.pop("real")
+            detector = detect.run_detector(train_sets, real_train if tune else
                                            [c for c in s_clips if c.domain == "real" and c.half == "evaluation"],
                                            sensor, seeds=seeds, steps=vis.quick_detector_steps if quick
                                            else vis.detector_steps,
@@ -378,7 +395,8 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
             "n_clips": {"real_calibration": len({s.clip for s in real_cal}),
                         "real_evaluation": len({s.clip for s in real_eval}),
                         "synthetic": len({s.clip for s in synthetic})},
-            "statistics": statistics_table(s_samples, clip_summaries, sensor, classes),
+            "statistics": statistics_table(s_samples, clip_summaries, sensor, classes,
+                                           reference="calibration" if tune else "evaluation"),
             "classifier": cond, "domain_classifier": domain, "detector": detector, "sheets": files,
         }
         summary["timings_s"][f"{sensor}_models"] = time.time() - t
@@ -386,7 +404,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
 
     if "audio" in cfg.sensors:
         t = time.time()
-        summary["sensors"]["audio"] = _audio_track(bench, cfg, out, quick, progress)
+        summary["sensors"]["audio"] = _audio_track(bench, cfg, out, quick, progress, tune)
         summary["timings_s"]["audio"] = time.time() - t
 
     summary["timings_s"]["total"] = time.time() - t0
@@ -396,24 +414,49 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     return summary
 
 
-def _audio_track(bench, cfg: Sim2RealConfig, out: Path, quick: bool, progress: bool) -> dict[str, Any]:
-    """Real audio clips of both halves and the synthetic clips of the config, through the audio track."""
+def _condition_sets(real_train: list[FrameSample], set_b: "classify.CropSet", classes: list[str],
+                    few_shot_fraction: float, rng: np.random.Generator) -> dict[str, "classify.CropSet"]:
+    """The five training conditions from the real training crops and the synthetic set (the same object
+    in every fold, so cross-fitting trains (b) once)."""
+    few = classify.few_shot_clips(real_train, few_shot_fraction, rng)
+    set_a = classify.crop_set(real_train, classes)
+    set_d = classify.crop_set([s for s in real_train if s.clip in few], classes)
+    return {"a_real": set_a, "b_synthetic": set_b, "c_synthetic_plus_real": classify.concat(set_b, set_a),
+            "d_few_shot": set_d, "d_plus_few_shot_synthetic": classify.concat(set_b, set_d)}
+
+
+def _audio_track(bench, cfg: Sim2RealConfig, out: Path, quick: bool, progress: bool, tune: bool) -> dict[str, Any]:
+    """Real audio clips of both halves (``tune``: the calibration half's two tuning folds in their place,
+    fold 0 tested, fold 1 training) and the synthetic clips of the config, through the audio track."""
+    import dataclasses
+
     from harness.experiments.sim2real import audio
     from harness.experiments.sim2real.compare import AUDIO, predictions_path
+    from simulator.formats.svanstrom import tuning_fold
 
-    real = audio.real_audio_clips(bench)
+    real = audio.real_audio_clips(bench, half="calibration" if tune else None)
+    if tune:
+        # the larger fold (clips 1-9, 21-29: ten per class) is the test, the five of 11-19 train (a)
+        real = [dataclasses.replace(c, half="evaluation" if tuning_fold(c.number) == 0 else "calibration")
+                for c in real]
     synthetic = audio.synthetic_audio_clips(cfg.audio, cfg.seed, quick=quick)
     return audio.run_audio_track(real, synthetic, seeds=cfg.training.seeds, quick=quick, out_dir=out / "sheets",
                                  progress=progress, predictions=predictions_path(out, AUDIO))
 
 
+TEST_HALF_WORDS = {"evaluation": "the real evaluation half",
+                   "calibration": "the real calibration half (--tune: cross-fitted folds; audio: fold 0)"}
+
+
 def format_table(summary: dict[str, Any]) -> str:
     """The plain-text table the command prints."""
     lines = []
+    tuned = summary.get("test_half", "evaluation") == "calibration"
+    half = TEST_HALF_WORDS["calibration" if tuned else "evaluation"]
     for sensor, res in summary["sensors"].items():
         if sensor not in VISUAL_SENSORS:
             for model, r in res.get("classifier", {}).items():
-                lines.append(f"audio ({model}): ROC-AUC on the real evaluation half")
+                lines.append(f"audio ({model}): ROC-AUC on {half}")
                 for cond, v in r.items():
                     if isinstance(v, dict):
                         lines.append(f"  {v.get('description', cond):<52} {v['roc_auc']:.3f} "
@@ -426,11 +469,12 @@ def format_table(summary: dict[str, Any]) -> str:
             if inside:
                 lines.append("audio statistics: synthetic median inside the real IQR for "
                              f"{sum(v['inside'] for v in inside.values())} of {sum(v['of'] for v in inside.values())}"
-                             " (the real calibration half's median: "
-                             f"{sum(v.get('calibration_inside', 0) for v in inside.values())})")
+                             + (" (fold 0's IQR; fold 1's median: " if tuned
+                                else " (the real calibration half's median: ")
+                             + f"{sum(v.get('calibration_inside', 0) for v in inside.values())})")
             continue
         c = res["classifier"]
-        lines.append(f"{sensor}: balanced accuracy on the real evaluation half ({c['n_test_clips']} clips, "
+        lines.append(f"{sensor}: balanced accuracy on {half} ({c['n_test_clips']} clips, "
                      f"{c['n_test_crops']} crops; chance {1 / len(res['classes']):.2f})")
         for name, r in c["conditions"].items():
             recall = ", ".join(f"{k.lower()} {'-' if v is None else f'{v:.2f}'}"
@@ -464,5 +508,6 @@ def format_table(summary: dict[str, Any]) -> str:
         n_in = sum(res["statistics"][cls][st]["inside"] for cls, st in inside)
         n_cal = sum(bool(res["statistics"][cls][st].get("calibration_inside")) for cls, st in inside)
         lines.append(f"  statistics: synthetic median inside the real IQR for {n_in} of {len(inside)}"
-                     f" (the real calibration half's median: {n_cal} of {len(inside)})")
+                     + (" (the calibration half's IQR)" if tuned
+                        else f" (the real calibration half's median: {n_cal} of {len(inside)})"))
     return "\n".join(lines)

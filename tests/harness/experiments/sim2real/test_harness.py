@@ -442,3 +442,93 @@ def test_detector_downscale_is_checked_naming_the_field():
         with pytest.raises(pydantic.ValidationError, match=word) as err:
             VisualProtocol.model_validate({**base, "detector_downscale": bad})
         assert "detector_downscale" in str(err.value)
+
+
+def test_cross_fitting_scores_each_fold_with_the_other_folds_models_and_trains_a_shared_set_once(monkeypatch):
+    """Tuning (``--tune``): a stub network answers the number of crops it was trained on (mod 3), so
+    each test crop's prediction names the model that scored it: fold 0's crops get the models trained
+    on fold 1's real crops and vice versa; the synthetic set, the same object in both folds, is
+    trained once per seed and scores every crop."""
+    trained = []
+
+    def fake_train(train, n_classes, seed, **kw):
+        trained.append((len(train.y), seed))
+        return len(train.y)
+
+    def fake_predict(net, x, batch_size=1024):
+        out = np.zeros((len(x), 3), np.float32)
+        out[:, net % 3] = 1.0
+        return out
+
+    monkeypatch.setattr(classify, "train_cnn", fake_train)
+    monkeypatch.setattr(classify, "predict", fake_predict)
+    mk = lambda n, tag: classify.CropSet(np.zeros((n, 1, 4, 4), np.float32), np.arange(n) % 3,  # noqa: E731
+                                         np.array([f"{tag}{i}" for i in range(n)]))
+    syn, real_fold1, real_fold0 = mk(6, "s"), mk(4, "f1_"), mk(5, "f0_")   # 6 % 3 = 0, 4 % 3 = 1, 5 % 3 = 2
+    test = mk(6, "t")
+    held0 = np.array([True, True, False, False, True, False])
+    fit = classify.CrossFit([{"a_real": real_fold1, "b_synthetic": syn}, {"a_real": real_fold0, "b_synthetic": syn}],
+                            [held0, ~held0])
+    out = classify.evaluate_conditions(fit, test, 3, seeds=[0, 1], steps=1, batch_size=2, learning_rate=1e-3,
+                                       bootstrap=20, rng_seed=0)
+    conf_a = np.array(out["conditions"]["a_real"]["confusion"])   # rows true class, columns predicted
+    predicted_a = conf_a.sum(axis=0)
+    assert predicted_a.tolist() == [0, 2 * 3, 2 * 3]     # fold 0's 3 crops called 1, fold 1's 3 called 2; 2 seeds
+    assert np.array(out["conditions"]["b_synthetic"]["confusion"]).sum(axis=0).tolist() == [12, 0, 0]
+    assert sorted(trained) == sorted([(6, 0), (6, 1), (4, 0), (4, 1), (5, 0), (5, 1)])   # (b) once per seed
+    assert out["cross_fit"]["folds"] == 2 and out["cross_fit"]["test_crops"] == [3, 3]
+    with pytest.raises(ValueError, match="exactly one fold"):
+        classify.CrossFit([{"a_real": syn}, {"a_real": syn}], [held0, held0])
+    with pytest.raises(ValueError, match="same conditions"):
+        classify.CrossFit([{"a_real": syn}, {"b_synthetic": syn}], [held0, ~held0])
+
+
+def test_tune_run_reads_only_the_calibration_half_and_cross_fits(quick_run, tmp_path):
+    """``evids sim2real --tune`` on a miniature whose evaluation clips are all damaged (no labels):
+    the run succeeds and skips nothing (the evaluation half is never read); the classifiers are tested
+    on the calibration clips of both tuning folds (1 = fold 0, 11 = fold 1), each trained on the other
+    fold; the statistics are judged against the calibration IQR; a tune run and an evaluation run
+    refuse to be compared."""
+    import shutil
+
+    from simulator.formats.svanstrom import tuning_fold
+    from tests.simulator.formats.svanstrom_miniature import write_miniature
+
+    assert [tuning_fold(n) for n in (1, 9, 11, 19, 21)] == [0, 0, 1, 1, 0]
+    with pytest.raises(ValueError, match="evaluation clip"):
+        tuning_fold(2)
+    _, quick_out, proc = quick_run
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    real = write_miniature(tmp_path / "real", numbers=(1, 2, 11), n_frames=6, ir_size=(64, 48),
+                           visible_size=(96, 80), audio_s=2.0)
+    for label in (real / "Data").rglob("*_002_LABELS.mat"):
+        label.unlink()                                  # the evaluation half: unreadable, and never read
+    out = tmp_path / "tune"
+    shutil.copytree(quick_out, out)           # the renders do not depend on the real data: keep them, drop the rest
+    for path in out.iterdir():
+        if path.name != "synthetic" and not path.name.startswith("."):
+            shutil.rmtree(path) if path.is_dir() else path.unlink()
+    proc = _cli("sim2real", "--real", str(real), "--out", str(out), "--quick", "--tune", "--no-progress")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    summary = json.loads((out / "sim2real.json").read_text())
+    assert summary["test_half"] == "calibration" and summary["skipped_clips"] == []
+    for sensor in ("ir", "visible"):
+        res = summary["sensors"][sensor]
+        assert res["n_clips"]["real_evaluation"] == 0
+        c = res["classifier"]
+        assert c["n_test_clips"] == res["n_clips"]["real_calibration"] and c["cross_fit"]["folds"] == 2
+        # each fold's real training set holds the other fold's clips only
+        assert [f["a_real"] for f in c["cross_fit"]["train_clips"]] == [c["n_test_clips"] // 2] * 2
+        assert all(row["real_evaluation"] is None and row["calibration_inside"] is None
+                   for rows in res["statistics"].values() for row in rows.values())
+        assert any(row["inside"] is not None for rows in res["statistics"].values() for row in rows.values())
+        assert set(res["detector"]["conditions"]) == {"synthetic"}
+    audio = summary["sensors"]["audio"]
+    assert audio["n_clips"]["evaluation"] == 3 and audio["n_clips"]["calibration"] == 3   # fold 0 / fold 1
+    assert "calibration half (--tune" in proc.stdout
+    assert "Tuning run" in (out / "sim2real.html").read_text()
+    proc = _cli("sim2real-compare", "--before", str(quick_out), "--after", str(out))
+    assert proc.returncode == 2 and "compare runs of the same kind" in proc.stderr
+    proc = _cli("sim2real-compare", "--before", str(out), "--after", str(out))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "calibration half (--tune: cross-fitted)" in proc.stdout
