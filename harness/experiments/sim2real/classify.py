@@ -269,9 +269,8 @@ def _condition_job(name: str, seed: int) -> tuple[np.ndarray, np.ndarray | None]
 
 
 def evaluate_conditions(sets: dict[str, CropSet] | CrossFit, test: CropSet, n_classes: int, *, seeds: Sequence[int],
-                        steps: int,
-                        batch_size: int, learning_rate: float, bootstrap: int, rng_seed: int, workers: int = 1,
-                        label: str | None = None, reverse: CropSet | None = None,
+                        steps: int, batch_size: int, learning_rate: float, bootstrap: int, rng_seed: int,
+                        workers: int = 1, label: str | None = None, reverse: CropSet | None = None,
                         predictions: Path | None = None) -> dict[str, Any]:
     """Train every condition x seed (as forked jobs on ``workers`` processes, one torch thread each),
     evaluate on ``test``; balanced accuracy with clip-bootstrap CIs, the ratio (b)/(a), and the

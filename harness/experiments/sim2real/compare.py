@@ -29,7 +29,7 @@ import numpy as np
 
 from evids.metrics.bootstrap import clustered_bootstrap
 from harness.experiments.sim2real.classify import CONDITION_LABELS, Z_MDE, mean_balanced_accuracy
-from harness.experiments.sim2real.config import VISUAL_SENSORS
+from harness.experiments.sim2real.config import TEST_HALF_WORDS, VISUAL_SENSORS
 
 PREDICTIONS_DIR = "predictions"
 FORMAT_VERSION = 1
@@ -274,18 +274,15 @@ def _recall_line(names: Sequence[str], before: Sequence[float | None], after: Se
                                  if b is not None and a is not None)
 
 
-_HALF_WORDS = {"evaluation": "evaluation half", "calibration": "calibration half (--tune: cross-fitted)"}
-
-
 def format_comparison(result: dict[str, Any]) -> str:
     """The comparison as a printed table, one block per sensor."""
     lines = [f"after:  {result['after']}", f"before: {result['before']}"]
-    half = _HALF_WORDS[result.get("test_half", "evaluation")]
+    half = TEST_HALF_WORDS[result.get("test_half", "evaluation")]
     width = max([len(c["label"]) for res in result["sensors"].values() for c in res["conditions"].values()]
                 + [len(c["label"]) for rows in result.get("audio", {}).get("models", {}).values()
                    for c in rows.values()] + [1])
     for sensor, res in result["sensors"].items():
-        lines.append(f"{sensor}: balanced accuracy on the real {half} ({res['n_test_clips']} clips, "
+        lines.append(f"{sensor}: balanced accuracy on {half} ({res['n_test_clips']} clips, "
                      f"{res['n_test_crops']} crops), after - before, paired ({result['bootstrap']} clip resamples)")
         for c in res["conditions"].values():
             lines.append(f"  {c['label']:{width}s} {c['before']:.3f} -> {c['after']:.3f}  "
@@ -295,7 +292,7 @@ def format_comparison(result: dict[str, Any]) -> str:
                 lines.append(f"  {'':{width}s} {_recall_line(res['classes'], c['recall_before'], c['recall_after'])} %")
     if "audio" in result:
         res = result["audio"]
-        lines.append(f"audio: drone ROC-AUC on the real {half} ({res['n_test_clips']} recordings, "
+        lines.append(f"audio: drone ROC-AUC on {half} ({res['n_test_clips']} recordings, "
                      f"{res['n_test_windows']} windows), after - before, paired ({result['bootstrap']} recording "
                      f"resamples per class)")
         for model, rows in res["models"].items():

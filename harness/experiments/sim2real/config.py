@@ -9,6 +9,9 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from simulator.formats.svanstrom import SENSORS, VIDEO_CLASSES, Sensor
 
 VISUAL_SENSORS: tuple[Sensor, ...] = ("ir", "visible")
+#: what a run's classifiers were tested on, by its summary's ``test_half`` (printed by the run and by the comparison)
+TEST_HALF_WORDS = {"evaluation": "the real evaluation half",
+                   "calibration": "the real calibration half (--tune: cross-fitted)"}
 DEFAULT_CONFIG = Path(__file__).resolve().parents[3] / "examples" / "sim2real_svanstrom.yaml"
 
 

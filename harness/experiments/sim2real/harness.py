@@ -16,7 +16,7 @@ from typing import Any, Callable
 import numpy as np
 
 from harness.experiments.sim2real import classify
-from harness.experiments.sim2real.config import VISUAL_SENSORS, Sim2RealConfig, load_config
+from harness.experiments.sim2real.config import TEST_HALF_WORDS, VISUAL_SENSORS, Sim2RealConfig, load_config
 from harness.experiments.sim2real.samples import STAT_NAMES, ClipSummary, FrameSample
 from simulator.files import write_atomic
 
@@ -283,7 +283,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                   min_crop_px=vis.min_crop_px, seed=cfg.seed, keep=vis.detector_frames_per_clip)
     calls = [(clip, params) for s in sensors
              for clip in bench.clips(s, half="calibration" if tune else None, classes=classes)]
-    fold_of = {clip.name: tuning_fold(clip.number) for clip, _ in calls if clip.half == "calibration"}
+    fold_of = {clip.name: tuning_fold(clip.number) for clip, _ in calls} if tune else {}
     samples: list[FrameSample] = []
     clip_summaries: list[ClipSummary] = []
     results = _cached_real_samples(out, bench, calls, vis.workers, progress)
@@ -444,15 +444,11 @@ def _audio_track(bench, cfg: Sim2RealConfig, out: Path, quick: bool, progress: b
                                  progress=progress, predictions=predictions_path(out, AUDIO))
 
 
-TEST_HALF_WORDS = {"evaluation": "the real evaluation half",
-                   "calibration": "the real calibration half (--tune: cross-fitted folds; audio: fold 0)"}
-
-
 def format_table(summary: dict[str, Any]) -> str:
     """The plain-text table the command prints."""
     lines = []
     tuned = summary.get("test_half", "evaluation") == "calibration"
-    half = TEST_HALF_WORDS["calibration" if tuned else "evaluation"]
+    half = TEST_HALF_WORDS[summary.get("test_half", "evaluation")]
     for sensor, res in summary["sensors"].items():
         if sensor not in VISUAL_SENSORS:
             for model, r in res.get("classifier", {}).items():
