@@ -297,8 +297,13 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
     from harness.experiments.config import FusionConfig
     from harness.experiments.pipeline import forked_results
     from harness.experiments.sim2real import audio as s2r_audio
-    from harness.experiments.sim2real.config import Sim2RealConfig
-    from harness.experiments.sim2real.harness import VISUAL_SENSORS, _cached_real_samples, _synthetic_job
+    from harness.experiments.sim2real.config import Sim2RealConfig, synthetic_set_folder
+    from harness.experiments.sim2real.harness import (
+        VISUAL_SENSORS,
+        _cached_real_samples,
+        _synthetic_job,
+        _synthetic_sets,
+    )
     from harness.report.realbench import write_page
     from harness.runfolder import write_json
     from scenes.errors import UserInputError
@@ -339,12 +344,15 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
                 samples += got
         syn_calls = []
         for cls in classes:
-            folder = sim2real_dir / "synthetic" / cls / "sequences"
-            done = sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".")) \
-                if folder.is_dir() else []
-            for j, seq in enumerate(done):
-                for sensor in sensors:
-                    syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
+            spec = vis.classes[cls]
+            for own in _synthetic_sets(spec, sensors):      # the sim2real run's sets this run's sensors read
+                folder = sim2real_dir / "synthetic" / synthetic_set_folder(cls, own) / "sequences"
+                done = sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".")) \
+                    if folder.is_dir() else []
+                for j, seq in enumerate(done):
+                    for sensor in sensors:
+                        if spec.set_of(sensor) == own:
+                            syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
         # in call order, not forked_map's completion order (timing): the order sets the models' batches
         for got, _ in forked_results(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
                                      else None):

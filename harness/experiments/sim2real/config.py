@@ -1,6 +1,7 @@
 """The sim-to-real protocol file (examples/sim2real_svanstrom.yaml), validated at the boundary."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +34,48 @@ class SyntheticClass(_Model):
     generation: dict[str, Any]
     sequences: int = Field(ge=1, le=10_000)
     quick_sequences: int = Field(default=1, ge=1, le=100)
+    sensor_generation: dict[str, dict[str, Any]] = Field(
+        default_factory=dict,
+        description="per visual sensor, changes to `generation` (mappings merged key by key, anything else "
+                    "replaced) that give that sensor a synthetic set of its own, rendered apart with the same "
+                    "seed: the benchmark's IR and visible clips of a class are separate recordings "
+                    "(docs/SIM2REAL.md, \"One synthetic set per sensor\")")
+
+    @field_validator("sensor_generation")
+    @classmethod
+    def _visual_sensors(cls, value: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
+        _reject_unknown(value, VISUAL_SENSORS, "sensor(s)", f"expected {', '.join(VISUAL_SENSORS)}")
+        return value
+
+    def generation_for(self, sensor: str | None) -> dict[str, Any]:
+        """The generation mapping of ``sensor``'s own set (``None``: the shared one), not yet validated."""
+        if sensor is None or sensor not in self.sensor_generation:
+            return json.loads(json.dumps(self.generation))
+        merged = merge_mappings(self.generation, self.sensor_generation[sensor])
+        merged.setdefault("name", "sim2real")
+        if "name" not in self.sensor_generation[sensor]:
+            merged["name"] = f"{merged['name']}_{sensor}"
+        return merged
+
+    def set_of(self, sensor: str) -> str | None:
+        """Which of this class's synthetic sets ``sensor`` reads: its own (the sensor) or the shared one (None)."""
+        return sensor if sensor in self.sensor_generation else None
+
+
+def synthetic_set_folder(cls: str, own_sensor: str | None) -> str:
+    """The folder under a run's ``synthetic/`` of a class's shared set (``own_sensor`` None) or of a sensor's own."""
+    return cls if own_sensor is None else f"{cls}_{own_sensor}"
+
+
+def merge_mappings(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    """A deep copy of ``base`` with ``changes`` applied: mappings merged key by key, other values replaced."""
+    out = json.loads(json.dumps(base))
+    for key, value in changes.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = merge_mappings(out[key], value)
+        else:
+            out[key] = json.loads(json.dumps(value))
+    return out
 
 
 class VisualProtocol(_Model):

@@ -16,7 +16,14 @@ from typing import Any, Callable
 import numpy as np
 
 from harness.experiments.sim2real import classify
-from harness.experiments.sim2real.config import TEST_HALF_WORDS, VISUAL_SENSORS, Sim2RealConfig, load_config
+from harness.experiments.sim2real.config import (
+    TEST_HALF_WORDS,
+    VISUAL_SENSORS,
+    Sim2RealConfig,
+    SyntheticClass,
+    load_config,
+    synthetic_set_folder,
+)
 from harness.experiments.sim2real.samples import STAT_NAMES, ClipSummary, FrameSample
 from simulator.files import write_atomic
 
@@ -70,12 +77,13 @@ def _cached_real_samples(out: Path, bench, calls: list, workers: int, progress: 
     return results
 
 
-def _generation_config(cfg: Sim2RealConfig, cls: str, base_dir: Path, quick: bool):
-    """The class's generation config with scenario paths made absolute (and shrunk for --quick)."""
+def _generation_config(cfg: Sim2RealConfig, cls: str, base_dir: Path, quick: bool, own_sensor: str | None = None):
+    """The generation config of the class's shared set (or of ``own_sensor``'s own set) with scenario
+    paths made absolute (and shrunk for --quick)."""
     from simulator.dataset.config import GenerationConfig
 
     spec = cfg.visual.classes[cls]
-    data = json.loads(json.dumps(spec.generation))
+    data = spec.generation_for(own_sensor)
     for entry in data.get("mixture", []):
         path = Path(entry["scenario"])
         if path.suffix and not path.is_absolute():
@@ -88,7 +96,15 @@ def _generation_config(cfg: Sim2RealConfig, cls: str, base_dir: Path, quick: boo
         data["spp"] = 1
     from scenes.loader import validate_mapping
 
-    return validate_mapping(GenerationConfig, data, f"sim2real config: visual.classes.{cls}.generation")
+    where = "generation" if own_sensor is None else f"sensor_generation.{own_sensor} (merged into generation)"
+    return validate_mapping(GenerationConfig, data, f"sim2real config: visual.classes.{cls}.{where}")
+
+
+def _synthetic_sets(spec: SyntheticClass, sensors: Sequence[str]) -> list[str | None]:
+    """The class's synthetic sets the run's ``sensors`` read: the shared one (None) if a sensor reads
+    it, then each sensor's own, in the run's sensor order."""
+    return ([None] if any(spec.set_of(s) is None for s in sensors) else []) + \
+        [s for s in sensors if spec.set_of(s) is not None]
 
 
 def _stat_summary(values: Sequence[float | None]) -> dict[str, float] | None:
@@ -276,6 +292,8 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                                "sensors": {}, "timings_s": {}}
     skipped: list[str] = []
     sensors = [v for s in cfg.sensors for v in VISUAL_SENSORS if v == s]    # the config's order, typed
+    gen_cfgs = {(cls, own): _generation_config(cfg, cls, base_dir, quick, own)   # every set's recipe checked
+                for cls in (classes if sensors else []) for own in _synthetic_sets(vis.classes[cls], sensors)}
 
     # 1. real samples -----------------------------------------------------------------------------
     t = time.time()
@@ -306,20 +324,26 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     t = time.time()
     syn_calls = []
     for k, cls in enumerate(classes if sensors else []):    # audio only: no video to render
-        gen_cfg = _generation_config(cfg, cls, base_dir, quick)
-        folder = out / "synthetic" / cls
-        try:
-            generate_dataset(gen_cfg, folder, cfg.seed + k, workers=1 if quick else vis.workers, progress=progress)
-        except GenerationFailed as exc:   # the other sequences are complete: measure them, report the failures
-            if strict:
-                raise
-            summary.setdefault("synthetic_failures", {})[cls] = exc.failures
-            log(f"[sim2real] {cls}: {len(exc.failures)} synthetic sequence(s) failed to render and are left out "
-                f"(listed in sim2real.json): " + "; ".join(f"{n}: {m}" for n, m in sorted(exc.failures.items())))
-        done = sorted(p for p in (folder / "sequences").iterdir() if p.is_dir() and not p.name.startswith("."))
-        for j, seq in enumerate(done):
-            for sensor in sensors:
-                syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
+        spec = vis.classes[cls]
+        for own in _synthetic_sets(spec, sensors):  # all with the class's seed: a sensor's own set differs
+            gen_cfg = gen_cfgs[cls, own]            # from the shared one only by what its sensor_generation changes
+            name = synthetic_set_folder(cls, own)
+            folder = out / "synthetic" / name
+            try:
+                generate_dataset(gen_cfg, folder, cfg.seed + k, workers=1 if quick else vis.workers,
+                                 progress=progress)
+            except GenerationFailed as exc:   # the other sequences are complete: measure them, report the failures
+                if strict:
+                    raise
+                summary.setdefault("synthetic_failures", {})[name] = exc.failures
+                log(f"[sim2real] {name}: {len(exc.failures)} synthetic sequence(s) failed to render and are left "
+                    f"out (listed in sim2real.json): "
+                    + "; ".join(f"{n}: {m}" for n, m in sorted(exc.failures.items())))
+            done = sorted(p for p in (folder / "sequences").iterdir() if p.is_dir() and not p.name.startswith("."))
+            for j, seq in enumerate(done):
+                for sensor in sensors:
+                    if spec.set_of(sensor) == own:
+                        syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
     summary["timings_s"]["synthetic_render"] = time.time() - t
     t = time.time()
     # in call order (class, sequence, sensor), not completion order: the samples' order sets the

@@ -532,3 +532,91 @@ def test_tune_run_reads_only_the_calibration_half_and_cross_fits(quick_run, tmp_
     proc = _cli("sim2real-compare", "--before", str(out), "--after", str(out))
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "calibration half (--tune: cross-fitted)" in proc.stdout
+
+
+def test_sensor_generation_merges_into_the_class_generation_known_answer():
+    """A sensor's own set: mappings merged key by key, lists and values replaced, the name suffixed
+    with the sensor; a sensor without one reads the shared set; unknown sensors are refused by name."""
+    from pydantic import ValidationError
+
+    from harness.experiments.sim2real.config import SyntheticClass, merge_mappings, synthetic_set_folder
+
+    base = {"name": "air", "spp": 2, "randomise": {"target_size_scale": [0.5, 1.5], "speed_mps": [80, 230],
+                                                    "distance_bins": [{"weight": 1, "range_m": [450, 8500]}]}}
+    near = [{"weight": 2, "range_m": [180, 3400]}]
+    spec = SyntheticClass(generation=base, sequences=4, sensor_generation={
+        "ir": {"randomise": {"target_size_scale": [0.2, 0.6], "distance_bins": near}}})
+    ir = spec.generation_for("ir")
+    assert ir == {"name": "air_ir", "spp": 2,
+                  "randomise": {"target_size_scale": [0.2, 0.6], "speed_mps": [80, 230], "distance_bins": near}}
+    assert spec.generation_for("visible") == base == spec.generation_for(None)
+    assert spec.generation_for("visible") is not spec.generation          # a copy: the caller may edit it
+    assert base["randomise"]["target_size_scale"] == [0.5, 1.5]           # the class's own mapping untouched
+    assert (spec.set_of("ir"), spec.set_of("visible")) == ("ir", None)
+    assert (synthetic_set_folder("AIRPLANE", "ir"), synthetic_set_folder("AIRPLANE", None)) == ("AIRPLANE_ir",
+                                                                                                "AIRPLANE")
+    assert merge_mappings({"a": {"b": 1, "c": [1]}}, {"a": {"c": [2]}, "d": 3}) == {"a": {"b": 1, "c": [2]}, "d": 3}
+    with pytest.raises(ValidationError, match="audio"):
+        SyntheticClass(generation=base, sequences=4, sensor_generation={"audio": {}})
+
+
+def _recording_synthetic_job(calls: Path, seq_dir: str, params: dict):
+    """The harness's synthetic job, noting (sensor, class, set folder) in ``calls`` (it runs in worker processes)."""
+    with open(calls, "a") as f:
+        f.write(f"{params['sensor']} {params['cls']} {Path(seq_dir).parent.parent.name}\n")
+    return samples.synthetic_sequence_samples(Path(seq_dir), **params)
+
+
+def test_a_sensors_own_synthetic_set_is_rendered_apart_and_read_by_that_sensor_alone(quick_run, tmp_path,
+                                                                                      monkeypatch):
+    """The quick run's protocol with an IR-only BIRD set (birds three times larger), rerun in-process
+    on a copy of its folder: only BIRD_ir renders (the shared sets are reused), the IR BIRD crops come
+    from it and every other crop from the shared sets, and the visible results are the quick run's
+    to the byte. A bad merged value stops the run before any work, naming the field."""
+    import functools
+    import shutil
+
+    import torch
+    import yaml
+
+    from harness.experiments.sim2real import harness
+    from harness.experiments.sim2real.config import DEFAULT_CONFIG
+    from scenes.errors import UserInputError
+
+    real, out, proc = quick_run
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    protocol = yaml.safe_load(DEFAULT_CONFIG.read_text())
+    for spec in protocol["visual"]["classes"].values():     # same scenario paths: the shared renders are reused
+        for entry in spec["generation"]["mixture"]:
+            entry["scenario"] = str((DEFAULT_CONFIG.parent / entry["scenario"]).resolve())
+    protocol["visual"]["classes"]["BIRD"]["sensor_generation"] = {"ir": {"randomise": {"target_size_scale": [3, 3]}}}
+    config = tmp_path / "protocol.yaml"
+    config.write_text(yaml.safe_dump(protocol, sort_keys=False))   # the class order sets the seeds
+    rerun = tmp_path / "rerun"
+    shutil.copytree(out, rerun)
+    for stale in ("sim2real.json", "sim2real.html", "sheets", "detector"):
+        path = rerun / stale
+        shutil.rmtree(path) if path.is_dir() else path.unlink()
+    calls = tmp_path / "calls.txt"
+    monkeypatch.setattr(harness, "_synthetic_job", functools.partial(_recording_synthetic_job, calls))
+    monkeypatch.setattr(harness, "_audio_track", lambda *a, **k: {})
+    shared_mtime = {p: p.stat().st_mtime_ns for p in (rerun / "synthetic").glob("*/sequences/**/*") if p.is_file()}
+    threads = torch.get_num_threads()
+    try:
+        harness.run_sim2real(real, rerun, config_path=config, quick=True, progress=False, log=lambda _: None)
+    finally:
+        torch.set_num_threads(threads)
+    assert {p: p.stat().st_mtime_ns for p in shared_mtime} == shared_mtime     # nothing shared re-rendered
+    assert sorted((rerun / "synthetic" / "BIRD_ir" / "sequences").glob("seq*"))
+    read = sorted(set(calls.read_text().split("\n")) - {""})
+    assert read == sorted(f"{s} {c} {'BIRD_ir' if (s, c) == ('ir', 'BIRD') else c}"
+                          for s in ("ir", "visible") for c in ("DRONE", "BIRD", "AIRPLANE", "HELICOPTER"))
+    first, second = (json.loads((d / "sim2real.json").read_text())["sensors"] for d in (out, rerun))
+    assert second["visible"] == first["visible"]
+    own = yaml.safe_load(config.read_text())
+    own["visual"]["classes"]["BIRD"]["sensor_generation"]["ir"]["randomise"]["target_size_scale"] = [-1, 2]
+    config.write_text(yaml.safe_dump(own, sort_keys=False))
+    before = sorted(p.relative_to(rerun) for p in rerun.rglob("*"))
+    with pytest.raises(UserInputError, match=r"BIRD\.sensor_generation\.ir.*target_size_scale"):
+        harness.run_sim2real(real, rerun, config_path=config, quick=True, progress=False, log=lambda _: None)
+    assert sorted(p.relative_to(rerun) for p in rerun.rglob("*")) == before
