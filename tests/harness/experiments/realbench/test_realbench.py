@@ -41,8 +41,8 @@ def _write_sequence(seq: Path, rng: np.random.Generator, cls: str, n: int) -> No
 
 def write_sim2real_run(root: Path, n_sequences: int = 4, n_frames: int = 5) -> Path:
     """A finished-looking `evids sim2real` folder: sim2real.json (the shipped protocol, shrunk) and
-    ``n_sequences`` synthetic sequences per class."""
-    from harness.experiments.sim2real.config import load_config
+    ``n_sequences`` synthetic sequences per set of each class (the shared one and each sensor's own)."""
+    from harness.experiments.sim2real.config import load_config, synthetic_set_folder
 
     cfg, _ = load_config()
     data = cfg.model_dump(mode="json")
@@ -50,9 +50,11 @@ def write_sim2real_run(root: Path, n_sequences: int = 4, n_frames: int = 5) -> P
     data["visual"].update(frames_per_real_clip=3, workers=1, detector_frames_per_clip=0)
     data["training"]["seeds"] = [0, 1]
     rng = np.random.default_rng(5)
-    for cls in data["visual"]["classes"]:
-        for j in range(n_sequences):
-            _write_sequence(root / "synthetic" / cls / "sequences" / f"seq{j + 1:06d}", rng, cls, n_frames)
+    for cls, spec in cfg.visual.classes.items():
+        for own in (None, *spec.sensor_generation):
+            for j in range(n_sequences):
+                _write_sequence(root / "synthetic" / synthetic_set_folder(cls, own) / "sequences" / f"seq{j + 1:06d}",
+                                rng, cls, n_frames)
     (root / "sim2real.json").write_text(json.dumps({"config": data}))
     return root
 

@@ -570,7 +570,7 @@ def _recording_synthetic_job(calls: Path, seq_dir: str, params: dict):
 def test_a_sensors_own_synthetic_set_is_rendered_apart_and_read_by_that_sensor_alone(quick_run, tmp_path,
                                                                                       monkeypatch):
     """The quick run's protocol with an IR-only BIRD set (birds three times larger), rerun in-process
-    on a copy of its folder: only BIRD_ir renders (the shared sets are reused), the IR BIRD crops come
+    on a copy of its folder: only BIRD_ir renders (every other set is reused), the IR BIRD crops come
     from it and every other crop from the shared sets, and the visible results are the quick run's
     to the byte. A bad merged value stops the run before any work, naming the field."""
     import functools
@@ -609,13 +609,15 @@ def test_a_sensors_own_synthetic_set_is_rendered_apart_and_read_by_that_sensor_a
     assert {p: p.stat().st_mtime_ns for p in shared_mtime} == shared_mtime     # nothing shared re-rendered
     assert sorted((rerun / "synthetic" / "BIRD_ir" / "sequences").glob("seq*"))
     read = sorted(set(calls.read_text().split("\n")) - {""})
-    assert read == sorted(f"{s} {c} {'BIRD_ir' if (s, c) == ('ir', 'BIRD') else c}"
+    own = {(s, c) for c, spec in protocol["visual"]["classes"].items() for s in spec.get("sensor_generation", {})}
+    assert ("ir", "BIRD") in own and len(own) > 1          # the shipped protocol's own sets are read too
+    assert read == sorted(f"{s} {c} {c}_{s}" if (s, c) in own else f"{s} {c} {c}"
                           for s in ("ir", "visible") for c in ("DRONE", "BIRD", "AIRPLANE", "HELICOPTER"))
     first, second = (json.loads((d / "sim2real.json").read_text())["sensors"] for d in (out, rerun))
     assert second["visible"] == first["visible"]
-    own = yaml.safe_load(config.read_text())
-    own["visual"]["classes"]["BIRD"]["sensor_generation"]["ir"]["randomise"]["target_size_scale"] = [-1, 2]
-    config.write_text(yaml.safe_dump(own, sort_keys=False))
+    bad = yaml.safe_load(config.read_text())
+    bad["visual"]["classes"]["BIRD"]["sensor_generation"]["ir"]["randomise"]["target_size_scale"] = [-1, 2]
+    config.write_text(yaml.safe_dump(bad, sort_keys=False))
     before = sorted(p.relative_to(rerun) for p in rerun.rglob("*"))
     with pytest.raises(UserInputError, match=r"BIRD\.sensor_generation\.ir.*target_size_scale"):
         harness.run_sim2real(real, rerun, config_path=config, quick=True, progress=False, log=lambda _: None)
