@@ -298,12 +298,7 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
     from harness.experiments.pipeline import forked_results
     from harness.experiments.sim2real import audio as s2r_audio
     from harness.experiments.sim2real.config import Sim2RealConfig, synthetic_set_folder
-    from harness.experiments.sim2real.harness import (
-        VISUAL_SENSORS,
-        _cached_real_samples,
-        _synthetic_job,
-        _synthetic_sets,
-    )
+    from harness.experiments.sim2real.harness import VISUAL_SENSORS, _cached_real_samples, _synthetic_job
     from harness.report.realbench import write_page
     from harness.runfolder import write_json
     from scenes.errors import UserInputError
@@ -345,7 +340,7 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
         syn_calls = []
         for cls in classes:
             spec = vis.classes[cls]
-            for own in _synthetic_sets(spec, sensors):      # the sim2real run's sets this run's sensors read
+            for own in spec.sets_read_by(sensors):      # the sim2real run's sets this run's sensors read
                 folder = sim2real_dir / "synthetic" / synthetic_set_folder(cls, own) / "sequences"
                 done = sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".")) \
                     if folder.is_dir() else []

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -51,15 +52,21 @@ class SyntheticClass(_Model):
         """The generation mapping of ``sensor``'s own set (``None``: the shared one), not yet validated."""
         if sensor is None or sensor not in self.sensor_generation:
             return json.loads(json.dumps(self.generation))
-        merged = merge_mappings(self.generation, self.sensor_generation[sensor])
-        merged.setdefault("name", "sim2real")
-        if "name" not in self.sensor_generation[sensor]:
-            merged["name"] = f"{merged['name']}_{sensor}"
+        changes = self.sensor_generation[sensor]
+        merged = merge_mappings(self.generation, changes)
+        if "name" not in changes and isinstance(merged.get("name"), str):
+            merged["name"] = f"{merged['name']}_{sensor}"        # the set's own name in its manifest
         return merged
 
     def set_of(self, sensor: str) -> str | None:
         """Which of this class's synthetic sets ``sensor`` reads: its own (the sensor) or the shared one (None)."""
         return sensor if sensor in self.sensor_generation else None
+
+    def sets_read_by(self, sensors: Sequence[str]) -> list[str | None]:
+        """The sets ``sensors`` read: the shared one (None) if one of them reads it, then each sensor's own,
+        in the given order."""
+        return ([None] if any(self.set_of(s) is None for s in sensors) else []) + \
+            [s for s in sensors if self.set_of(s) is not None]
 
 
 def synthetic_set_folder(cls: str, own_sensor: str | None) -> str:

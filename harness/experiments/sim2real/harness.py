@@ -20,7 +20,6 @@ from harness.experiments.sim2real.config import (
     TEST_HALF_WORDS,
     VISUAL_SENSORS,
     Sim2RealConfig,
-    SyntheticClass,
     load_config,
     synthetic_set_folder,
 )
@@ -98,13 +97,6 @@ def _generation_config(cfg: Sim2RealConfig, cls: str, base_dir: Path, quick: boo
 
     where = "generation" if own_sensor is None else f"sensor_generation.{own_sensor} (merged into generation)"
     return validate_mapping(GenerationConfig, data, f"sim2real config: visual.classes.{cls}.{where}")
-
-
-def _synthetic_sets(spec: SyntheticClass, sensors: Sequence[str]) -> list[str | None]:
-    """The class's synthetic sets the run's ``sensors`` read: the shared one (None) if a sensor reads
-    it, then each sensor's own, in the run's sensor order."""
-    return ([None] if any(spec.set_of(s) is None for s in sensors) else []) + \
-        [s for s in sensors if spec.set_of(s) is not None]
 
 
 def _stat_summary(values: Sequence[float | None]) -> dict[str, float] | None:
@@ -293,7 +285,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     skipped: list[str] = []
     sensors = [v for s in cfg.sensors for v in VISUAL_SENSORS if v == s]    # the config's order, typed
     gen_cfgs = {(cls, own): _generation_config(cfg, cls, base_dir, quick, own)   # every set's recipe checked
-                for cls in (classes if sensors else []) for own in _synthetic_sets(vis.classes[cls], sensors)}
+                for cls in (classes if sensors else []) for own in vis.classes[cls].sets_read_by(sensors)}
 
     # 1. real samples -----------------------------------------------------------------------------
     t = time.time()
@@ -325,7 +317,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     syn_calls = []
     for k, cls in enumerate(classes if sensors else []):    # audio only: no video to render
         spec = vis.classes[cls]
-        for own in _synthetic_sets(spec, sensors):  # all with the class's seed: a sensor's own set differs
+        for own in spec.sets_read_by(sensors):  # all with the class's seed: a sensor's own set differs
             gen_cfg = gen_cfgs[cls, own]            # from the shared one only by what its sensor_generation changes
             name = synthetic_set_folder(cls, own)
             folder = out / "synthetic" / name

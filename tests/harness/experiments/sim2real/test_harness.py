@@ -553,6 +553,8 @@ def test_sensor_generation_merges_into_the_class_generation_known_answer():
     assert spec.generation_for("visible") is not spec.generation          # a copy: the caller may edit it
     assert base["randomise"]["target_size_scale"] == [0.5, 1.5]           # the class's own mapping untouched
     assert (spec.set_of("ir"), spec.set_of("visible")) == ("ir", None)
+    assert spec.sets_read_by(["ir", "visible"]) == [None, "ir"] and spec.sets_read_by(["visible"]) == [None]
+    assert spec.sets_read_by(["ir"]) == ["ir"]                              # the shared set is not rendered
     assert (synthetic_set_folder("AIRPLANE", "ir"), synthetic_set_folder("AIRPLANE", None)) == ("AIRPLANE_ir",
                                                                                                 "AIRPLANE")
     assert merge_mappings({"a": {"b": 1, "c": [1]}}, {"a": {"c": [2]}, "d": 3}) == {"a": {"b": 1, "c": [2]}, "d": 3}
