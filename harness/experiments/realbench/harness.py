@@ -298,7 +298,7 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
     from harness.experiments.pipeline import forked_results
     from harness.experiments.sim2real import audio as s2r_audio
     from harness.experiments.sim2real.config import Sim2RealConfig, synthetic_set_folder
-    from harness.experiments.sim2real.harness import VISUAL_SENSORS, _cached_real_samples, _synthetic_job
+    from harness.experiments.sim2real.harness import VISUAL_SENSORS, _cached_real_samples, _set_calls, _synthetic_job
     from harness.report.realbench import write_page
     from harness.runfolder import write_json
     from scenes.errors import UserInputError
@@ -341,13 +341,8 @@ def run_realbench(real: Path, sim2real_dir: Path, out: Path, *, quick: bool = Fa
         for cls in classes:
             spec = vis.classes[cls]
             for own in spec.sets_read_by(sensors):      # the sim2real run's sets this run's sensors read
-                folder = sim2real_dir / "synthetic" / synthetic_set_folder(cls, own) / "sequences"
-                done = sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".")) \
-                    if folder.is_dir() else []
-                for j, seq in enumerate(done):
-                    for sensor in sensors:
-                        if spec.set_of(sensor) == own:
-                            syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
+                syn_calls += _set_calls(sim2real_dir / "synthetic" / synthetic_set_folder(cls, own), cls, spec, own,
+                                        sensors, params)
         # in call order, not forked_map's completion order (timing): the order sets the models' batches
         for got, _ in forked_results(_synthetic_job, syn_calls, vis.workers, "synthetic sequences" if progress
                                      else None):

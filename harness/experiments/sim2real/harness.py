@@ -20,6 +20,7 @@ from harness.experiments.sim2real.config import (
     TEST_HALF_WORDS,
     VISUAL_SENSORS,
     Sim2RealConfig,
+    SyntheticClass,
     load_config,
     synthetic_set_folder,
 )
@@ -97,6 +98,16 @@ def _generation_config(cfg: Sim2RealConfig, cls: str, base_dir: Path, quick: boo
 
     where = "generation" if own_sensor is None else f"sensor_generation.{own_sensor} (merged into generation)"
     return validate_mapping(GenerationConfig, data, f"sim2real config: visual.classes.{cls}.{where}")
+
+
+def _set_calls(folder: Path, cls: str, spec: SyntheticClass, own: str | None, sensors: Sequence[str],
+               params: dict) -> list[tuple[str, dict]]:
+    """The sample jobs of one synthetic set's finished sequences (in ``folder``/sequences), one per sequence
+    and sensor that reads the set (``own``: None for the shared set), sequence by sequence."""
+    seqs = folder / "sequences"
+    done = sorted(p for p in seqs.iterdir() if p.is_dir() and not p.name.startswith(".")) if seqs.is_dir() else []
+    return [(str(seq), dict(params, sensor=sensor, cls=cls, index=j)) for j, seq in enumerate(done)
+            for sensor in sensors if spec.set_of(sensor) == own]
 
 
 def _stat_summary(values: Sequence[float | None]) -> dict[str, float] | None:
@@ -331,11 +342,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
                 log(f"[sim2real] {name}: {len(exc.failures)} synthetic sequence(s) failed to render and are left "
                     f"out (listed in sim2real.json): "
                     + "; ".join(f"{n}: {m}" for n, m in sorted(exc.failures.items())))
-            done = sorted(p for p in (folder / "sequences").iterdir() if p.is_dir() and not p.name.startswith("."))
-            for j, seq in enumerate(done):
-                for sensor in sensors:
-                    if spec.set_of(sensor) == own:
-                        syn_calls.append((str(seq), dict(params, sensor=sensor, cls=cls, index=j)))
+            syn_calls += _set_calls(folder, cls, spec, own, sensors, params)
     summary["timings_s"]["synthetic_render"] = time.time() - t
     t = time.time()
     # in call order (class, sequence, sensor), not completion order: the samples' order sets the
