@@ -328,9 +328,11 @@ def remove_output(folder: Path) -> None:
     shutil.rmtree(folder)
 
 
-def copy_tree_no_symlinks(src: Path, dst: Path, *, skip: Iterable[str] = ()) -> None:
+def copy_tree_no_symlinks(src: Path, dst: Path, *, skip: Iterable[str] = (), hard_link: bool = False) -> None:
     """Copy regular files and folders of ``src`` into ``dst``; a symbolic link anywhere is refused
-    (never followed), so no byte from outside ``src`` can enter the copy."""
+    (never followed), so no byte from outside ``src`` can enter the copy. ``hard_link``: each file is
+    a hard link to its source where the file system allows one (a copy elsewhere): safe because evids
+    never modifies a file in place (every write replaces it, ``write_atomic``)."""
     from scenes.errors import UserInputError
 
     src, dst = Path(src), Path(dst)
@@ -345,6 +347,12 @@ def copy_tree_no_symlinks(src: Path, dst: Path, *, skip: Iterable[str] = ()) -> 
         for name in files:
             if (rel / name).as_posix() in skip or name in BOOKKEEPING[1:]:
                 continue
+            if hard_link:
+                try:
+                    os.link(Path(root) / name, dst / rel / name, follow_symlinks=False)
+                    continue
+                except OSError:   # another device, or a file system without hard links: copy
+                    pass
             shutil.copy2(Path(root) / name, dst / rel / name, follow_symlinks=False)
 
 

@@ -23,6 +23,12 @@ def sim2real(
                               "classifiers are cross-fitted over two folds of calibration clips (runs of 5 "
                               "consecutive clip numbers), statistics use the calibration IQR, the audio track "
                               "tests one fold. Compare two such runs with `evids sim2real-compare`."),
+    reuse_renders: Path = typer.Option(None, "--reuse-renders", help="An earlier sim2real run folder (e.g. the "
+                                       "`--before` of a comparison): every synthetic set whose recipe is unchanged "
+                                       "(same dataset id: generation config, seed, scenario files' paths) and the "
+                                       "real samples are hard-linked from it instead of redone, so only what a "
+                                       "protocol change touches renders. Both runs stay whole (evids never "
+                                       "modifies a file in place)."),
 ) -> None:
     """Generate the synthetic counterpart of the real benchmark (same sensors, resolutions, classes and box
     sizes), then measure the gap on the real EVALUATION half (even clip numbers; the odd calibration half
@@ -33,22 +39,27 @@ def sim2real(
 
     Example: evids sim2real --real ~/data/Drone-detection-dataset --out out/sim2real
     Tuning:  evids sim2real --real ~/data/Drone-detection-dataset --tune --out out/s2r_tune_main
+             (edit the protocol) evids sim2real --real ... --tune --out out/s2r_tune_b --reuse-renders out/s2r_tune_main
     """
     from harness.experiments.sim2real.config import DEFAULT_CONFIG
     from harness.experiments.sim2real.harness import format_table, run_sim2real
     from harness.runfolder import create_run_folder
     from scenes.errors import UserInputError
-    from simulator.files import DatasetLock
+    from simulator.files import DatasetLock, is_evids_output
 
     if not real.exists():
         raise UserInputError(f"--real: {str(real)!r} does not exist")
     cfg_path = config if config is not None else DEFAULT_CONFIG
     if not Path(cfg_path).is_file():
         raise UserInputError(f"--config: {str(cfg_path)!r} does not exist")
-    create_run_folder(out, inputs=[real, cfg_path])
+    if reuse_renders is not None and not (reuse_renders.is_dir() and is_evids_output(reuse_renders)
+                                          and (reuse_renders / "synthetic").is_dir()):
+        raise UserInputError(f"--reuse-renders: {str(reuse_renders)!r} is not an evids sim2real run folder "
+                             "(no synthetic/ written by evids)")
+    create_run_folder(out, inputs=[real, cfg_path] + ([reuse_renders] if reuse_renders is not None else []))
     with DatasetLock(out, "sim2real"):
         summary = run_sim2real(real, out, config_path=cfg_path, quick=quick, strict=strict, progress=progress,
-                               log=typer.echo, tune=tune)
+                               log=typer.echo, tune=tune, reuse_renders=reuse_renders)
     typer.echo(format_table(summary))
     typer.echo(f"report: {out / 'sim2real.html'}")
 

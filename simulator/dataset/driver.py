@@ -50,6 +50,7 @@ class GenerationResult:
     skipped: list[str] = field(default_factory=list)
     exports: dict[str, Path] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    linked: list[str] = field(default_factory=list)   # units hard-linked from an earlier dataset (``reuse_from``)
 
 
 @dataclass
@@ -191,7 +192,7 @@ def _drive_locked(kind: DatasetKind, out: Path, lock: DatasetLock, *, overwrite:
                 if child.name not in (LOCK_FILE, LEASE_FILE):
                     shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
         else:
-            recorded = _recorded_hashes(old)
+            recorded = recorded_hashes(old)
     out.mkdir(parents=True, exist_ok=True)
     clean_stale(out)
     kind.prepare(out)
@@ -227,7 +228,7 @@ def _drive_locked(kind: DatasetKind, out: Path, lock: DatasetLock, *, overwrite:
     return result
 
 
-def _recorded_hashes(manifest: dict[str, Any]) -> dict[str, str]:
+def recorded_hashes(manifest: dict[str, Any]) -> dict[str, str]:
     """name -> content hash of every unit a manifest records (native ``sequences``, TRIDENT ``clips``)."""
     entries = manifest.get("sequences", manifest.get("clips", []))
     if not isinstance(entries, list):

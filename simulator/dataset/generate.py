@@ -40,12 +40,16 @@ from simulator.dataset.driver import (
     canonical_sha256,
     clean_stale,
     drive,
+    recorded_hashes,
 )
 from simulator.dataset.exporters import EXPORT_FORMATS, dataset_kind, export_locked
 from simulator.files import (
     HASH_FILE,
+    MARKER_FILE,
     check_plain_name,
+    copy_tree_no_symlinks,
     inside,
+    temp_sibling,
     verify_hashes,
 )
 from simulator.jobs import JobError, Start, iter_jobs, threads_per_worker
@@ -224,12 +228,16 @@ def run_tasks(tasks: list[dict[str, Any]], sequences_dir: Path, **kwargs: Any) -
 def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_dir: str | Path, seed: int, *,
                      sequences: int | None = None, frames: int | None = None, workers: int = 1,
                      executor: str = "local", ray_address: str | None = None, formats: Iterable[str] = ("native",),
-                     overwrite: bool = False, progress: bool = True) -> GenerationResult:
+                     overwrite: bool = False, progress: bool = True,
+                     reuse_from: str | Path | None = None) -> GenerationResult:
     """Generate (or finish) the dataset in ``out_dir``; see the module docstring.
 
     Sequences already present and intact are kept; missing or corrupt ones are (re)rendered. An
-    ``out_dir`` holding a different dataset is refused unless ``overwrite``. Raises
-    :class:`GenerationFailed` naming the failed sequences (the rest stay complete).
+    ``out_dir`` holding a different dataset is refused unless ``overwrite``. ``reuse_from``: an earlier
+    dataset folder; if it is the same dataset (same ``dataset_id``: config, seed, scenarios), its intact
+    sequences that ``out_dir`` lacks are hard-linked in instead of rendered (``GenerationResult.linked``);
+    any other folder, or none there, changes nothing. Raises :class:`GenerationFailed` naming the failed
+    sequences (the rest stay complete).
     """
     if seed < 0:
         raise UserInputError(f"--seed must be >= 0, got {seed}")
@@ -256,7 +264,8 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
     tasks = plan_dataset(config, seed, base_dir)
     config_file = ([Path(config_or_name)] if isinstance(config_or_name, (str, Path)) and Path(config_or_name).is_file()
                    else [])
-    kind = NativeDataset(config, seed, tasks, executor=executor, ray_address=ray_address)
+    kind = NativeDataset(config, seed, tasks, executor=executor, ray_address=ray_address,
+                         reuse_from=None if reuse_from is None else Path(reuse_from))
 
     def export(result: GenerationResult) -> None:  # under the dataset lock, after the final manifest
         for fmt in formats:
@@ -264,8 +273,10 @@ def generate_dataset(config_or_name: str | Path | dict | GenerationConfig, out_d
                 result.exports[fmt] = export_locked(result.out_dir, fmt, result.out_dir / fmt, overwrite=True,
                                                      progress=progress)
 
-    return drive(kind, out_dir, inputs=config_file, overwrite=overwrite, workers=workers, progress=progress,
-                 finish=export)
+    result = drive(kind, out_dir, inputs=config_file, overwrite=overwrite, workers=workers, progress=progress,
+                   finish=export)
+    result.linked = list(kind.linked)
+    return result
 
 
 @dataclass
@@ -278,6 +289,8 @@ class NativeDataset:
     executor: str = "local"
     ray_address: str | None = None
     noun: str = "sequence"
+    reuse_from: Path | None = None      # an earlier folder of the same dataset: its sequences are linked
+    linked: list[str] = field(default_factory=list, init=False)
     _identity: str | None = field(default=None, init=False, repr=False)
 
     @property
@@ -302,6 +315,35 @@ class NativeDataset:
                 child.unlink()
             elif child.is_dir() and child.name not in wanted:
                 shutil.rmtree(child)
+        if self.reuse_from is not None:
+            self.linked = self._link_from(self.reuse_from, seq_root)
+
+    def _link_from(self, source: Path, seq_root: Path) -> list[str]:
+        """Hard-link into ``seq_root`` the intact sequences of ``source`` (an earlier folder of this very
+        dataset: same ``dataset_id``) that ``seq_root`` lacks, each through a temporary sibling; a
+        source that is no evids dataset or another dataset gives nothing. Returns the linked names."""
+        if source.resolve() == seq_root.parent.resolve() or not (source / MANIFEST).is_file():
+            return []
+        try:
+            old = load_manifest(source)
+        except UserInputError:
+            return []
+        if old.get("dataset_id") != self.identity():
+            return []
+        recorded = recorded_hashes(old)
+        linked = []
+        for task in self.tasks:
+            name, src = task["name"], source / SEQUENCES_DIR / task["name"]
+            if ((seq_root / name).exists() or name not in recorded or src.is_symlink()
+                    or not _sequence_ok(src, task, recorded[name])):
+                continue
+            tmp = temp_sibling(seq_root / name)      # a killed run leaves only a temporary (clean_stale)
+            copy_tree_no_symlinks(src, tmp, hard_link=True)
+            if (src / MARKER_FILE).is_file():           # written by evids: a later --overwrite may replace it
+                shutil.copy2(src / MARKER_FILE, tmp / MARKER_FILE)
+            os.rename(tmp, seq_root / name)
+            linked.append(name)
+        return linked
 
     def unit_ok(self, out: Path, unit: Unit, recorded_hash: str | None) -> bool:
         return _sequence_ok(out / SEQUENCES_DIR / unit.name, unit.payload, recorded_hash)

@@ -199,6 +199,19 @@ def test_copy_refuses_links_instead_of_following_them(tmp_path):
         if (tmp_path / "dst").exists() else True
 
 
+def test_hard_link_copy_shares_the_files_and_still_refuses_links(tmp_path):
+    src = tmp_path / "src"
+    (src / "rgb").mkdir(parents=True)
+    (src / "rgb" / "000001.png").write_bytes(b"png")
+    copy_tree_no_symlinks(src, tmp_path / "linked", hard_link=True)
+    copy_tree_no_symlinks(src, tmp_path / "copied")
+    assert (tmp_path / "linked" / "rgb" / "000001.png").stat().st_ino == (src / "rgb" / "000001.png").stat().st_ino
+    assert (tmp_path / "copied" / "rgb" / "000001.png").stat().st_ino != (src / "rgb" / "000001.png").stat().st_ino
+    (src / "rgb" / "000002.png").symlink_to(src / "rgb" / "000001.png")
+    with pytest.raises(UserInputError, match="symbolic link"):
+        copy_tree_no_symlinks(src, tmp_path / "again", hard_link=True)
+
+
 def test_is_evids_output_recognises_only_our_layouts(tmp_path):
     assert not is_evids_output(_user_folder(tmp_path / "u"))
     ds = tmp_path / "ds"

@@ -50,21 +50,27 @@ def _synthetic_job(seq_dir: str, params: dict) -> tuple[list[FrameSample], ClipS
 REAL_CACHE_VERSION = 1
 
 
-def _cached_real_samples(out: Path, bench, calls: list, workers: int, progress: bool) -> dict:
-    """The real clips' samples, from ``OUT/cache/real_samples.pkl`` when it was made from the same copy
-    of the benchmark with the same clips and sampling parameters (the real side does not change
-    between simulator versions: reruns skip decoding), else computed and cached."""
+def _cached_real_samples(out: Path, bench, calls: list, workers: int, progress: bool,
+                         reuse: Path | None = None) -> dict:
+    """The real clips' samples, from ``OUT/cache/real_samples.pkl`` (else the ``reuse`` run folder's)
+    when it was made from the same copy of the benchmark with the same clips and sampling parameters
+    (the real side does not change between simulator versions: reruns skip decoding), else computed;
+    cached in OUT either way."""
     import hashlib
     import pickle
 
     key = hashlib.sha256(json.dumps({"version": REAL_CACHE_VERSION, "benchmark": bench.identity(),
                                      "calls": [(c.media, p) for c, p in calls]}, sort_keys=True).encode()).hexdigest()
     path = out / "cache" / "real_samples.pkl"
-    if path.is_file():
+    for source in [path] + ([reuse / "cache" / "real_samples.pkl"] if reuse is not None else []):
+        if not source.is_file():
+            continue
         try:
-            with open(path, "rb") as fh:
-                cached = pickle.load(fh)  # our own cache file, written below
+            data = source.read_bytes()
+            cached = pickle.loads(data)  # evids's own cache file (written below; `reuse` is an evids run folder)
             if cached.get("key") == key:
+                if source != path:
+                    write_atomic(path, data)
                 return cached["results"]
         except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError):
             pass  # unreadable or from another version: recompute
@@ -261,12 +267,14 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
 
 
 def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quick: bool = False, strict: bool = False,
-                 progress: bool = True, log: Callable[[str], None] = print, tune: bool = False) -> dict[str, Any]:
+                 progress: bool = True, log: Callable[[str], None] = print, tune: bool = False,
+                 reuse_renders: Path | None = None) -> dict[str, Any]:
     """Run the whole protocol into ``out`` (see the module docstring); returns the summary. ``tune``: the
     calibration half only (the evaluation half is not read): classifiers cross-fitted over its two
     tuning folds (``svanstrom.tuning_fold``), statistics against its own IQR, the synthetic-trained
     detector scored on it, the audio track's fold 0 tested, fold 1 training: what a change is judged by
-    before the one evaluation run."""
+    before the one evaluation run. ``reuse_renders``: an earlier run folder whose synthetic sets with
+    an unchanged recipe (and real samples with unchanged parameters) are hard-linked, not redone."""
     # every module the run needs is imported here, before the long work: a module loaded lazily at
     # the end could come from a different version of the files than the rest of the run
     from harness.experiments.pipeline import forked_results
@@ -307,7 +315,7 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
     fold_of = {clip.name: tuning_fold(clip.number) for clip, _ in calls} if tune else {}
     samples: list[FrameSample] = []
     clip_summaries: list[ClipSummary] = []
-    results = _cached_real_samples(out, bench, calls, vis.workers, progress)
+    results = _cached_real_samples(out, bench, calls, vis.workers, progress, reuse_renders)
     for i in range(len(calls)):
         got, summ, err = results[i]
         if err is not None:
@@ -332,9 +340,14 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
             gen_cfg = gen_cfgs[cls, own]            # from the shared one only by what its sensor_generation changes
             name = synthetic_set_folder(cls, own)
             folder = out / "synthetic" / name
+            earlier = None if reuse_renders is None else reuse_renders / "synthetic" / name
             try:
-                generate_dataset(gen_cfg, folder, cfg.seed + k, workers=1 if quick else vis.workers,
-                                 progress=progress)
+                made = generate_dataset(gen_cfg, folder, cfg.seed + k, workers=1 if quick else vis.workers,
+                                        progress=progress, reuse_from=earlier)
+                if made.linked:
+                    summary.setdefault("synthetic_linked", {})[name] = len(made.linked)
+                    log(f"[sim2real] {name}: {len(made.linked)} sequence(s) hard-linked from {reuse_renders} "
+                        "(same recipe), not rendered")
             except GenerationFailed as exc:   # the other sequences are complete: measure them, report the failures
                 if strict:
                     raise

@@ -49,6 +49,28 @@ def test_manifest_records_config_seeds_versions_splits_and_hashes(tiny):
     assert verify_dataset(out).ok
 
 
+def test_reuse_from_links_the_same_datasets_intact_sequences_and_nothing_else(tiny, tmp_path):
+    """An earlier folder of the same dataset: its sequences are hard-linked, not rendered, and the result is
+    the same bytes; a corrupt one there is rendered anew; another dataset (another seed) lends nothing."""
+    import shutil
+
+    config, reference = tiny
+    first = gen.generate_dataset(config, tmp_path / "linked", 5, progress=False, reuse_from=reference)
+    assert first.linked == ["seq000001", "seq000002", "seq000003", "seq000004"] and first.rendered == []
+    assert tree_digest(tmp_path / "linked") == tree_digest(reference)
+    frame = next((reference / "sequences" / "seq000002").rglob("*.png"))
+    assert (tmp_path / "linked" / frame.relative_to(reference)).stat().st_ino == frame.stat().st_ino
+    damaged = tmp_path / "damaged"
+    shutil.copytree(reference, damaged)
+    with open(damaged / "sequences" / "seq000003" / "labels.json", "a") as fh:
+        fh.write(" ")
+    second = gen.generate_dataset(config, tmp_path / "partly", 5, progress=False, reuse_from=damaged)
+    assert second.linked == ["seq000001", "seq000002", "seq000004"] and second.rendered == ["seq000003"]
+    assert tree_digest(tmp_path / "partly") == tree_digest(reference)
+    other = gen.generate_dataset(config, tmp_path / "other", 6, progress=False, reuse_from=reference)
+    assert other.linked == [] and len(other.rendered) == 4
+
+
 def _default_sigint() -> None:
     """In the child: SIGINT back to its default. A pytest-xdist worker ignores SIGINT and a child
     inherits an ignored signal, so Python would never raise KeyboardInterrupt (the Ctrl-C test then

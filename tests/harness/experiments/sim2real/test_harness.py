@@ -86,6 +86,8 @@ def test_strict_stops_at_the_damaged_clip_and_bad_input_exits_2(quick_run, tmp_p
                    "sequences: 1}}}\n")
     proc = _cli("sim2real", "--real", str(real), "--out", str(tmp_path / "y"), "--config", str(bad))
     assert proc.returncode == 2 and "KITE" in proc.stderr
+    proc = _cli("sim2real", "--real", str(real), "--out", str(tmp_path / "z"), "--reuse-renders", str(real))
+    assert proc.returncode == 2 and "--reuse-renders" in proc.stderr and not (tmp_path / "z").exists()
 
 
 def test_frame_statistics_known_answers():
@@ -572,11 +574,11 @@ def _recording_synthetic_job(calls: Path, seq_dir: str, params: dict):
 def test_a_sensors_own_synthetic_set_is_rendered_apart_and_read_by_that_sensor_alone(quick_run, tmp_path,
                                                                                       monkeypatch):
     """The quick run's protocol with an IR-only BIRD set (birds three times larger), rerun in-process
-    on a copy of its folder: only BIRD_ir renders (every other set is reused), the IR BIRD crops come
-    from it and every other crop from the shared sets, and the visible results are the quick run's
-    to the byte. A bad merged value stops the run before any work, naming the field."""
+    into a new folder with ``reuse_renders`` = the quick run: only BIRD_ir renders (every other set and
+    the real samples are hard-linked from the quick run), the IR BIRD crops come from it and every other
+    crop from the shared sets, and the visible results are the quick run's to the byte. A bad merged
+    value stops the run before any work, naming the field."""
     import functools
-    import shutil
 
     import torch
     import yaml
@@ -595,21 +597,24 @@ def test_a_sensors_own_synthetic_set_is_rendered_apart_and_read_by_that_sensor_a
     config = tmp_path / "protocol.yaml"
     config.write_text(yaml.safe_dump(protocol, sort_keys=False))   # the class order sets the seeds
     rerun = tmp_path / "rerun"
-    shutil.copytree(out, rerun)
-    for stale in ("sim2real.json", "sim2real.html", "sheets", "detector"):
-        path = rerun / stale
-        shutil.rmtree(path) if path.is_dir() else path.unlink()
+    rerun.mkdir()
     calls = tmp_path / "calls.txt"
     monkeypatch.setattr(harness, "_synthetic_job", functools.partial(_recording_synthetic_job, calls))
     monkeypatch.setattr(harness, "_audio_track", lambda *a, **k: {})
-    shared_mtime = {p: p.stat().st_mtime_ns for p in (rerun / "synthetic").glob("*/sequences/**/*") if p.is_file()}
+    shared = {p.relative_to(out): p.stat().st_ino for p in (out / "synthetic").glob("*/sequences/**/*")
+              if p.is_file() and not p.name.startswith(".")}     # content, not evids's bookkeeping marker
+    assert shared
     threads = torch.get_num_threads()
     try:
-        harness.run_sim2real(real, rerun, config_path=config, quick=True, progress=False, log=lambda _: None)
+        summary = harness.run_sim2real(real, rerun, config_path=config, quick=True, progress=False,
+                                       log=lambda _: None, reuse_renders=out)
     finally:
         torch.set_num_threads(threads)
-    assert {p: p.stat().st_mtime_ns for p in shared_mtime} == shared_mtime     # nothing shared re-rendered
+    assert {p: (rerun / p).stat().st_ino for p in shared} == shared     # every shared file linked, none rendered
+    assert set(summary["synthetic_linked"]) == {p.parts[1] for p in shared}
+    assert (rerun / "cache" / "real_samples.pkl").read_bytes() == (out / "cache" / "real_samples.pkl").read_bytes()
     assert sorted((rerun / "synthetic" / "BIRD_ir" / "sequences").glob("seq*"))
+    assert not (out / "synthetic" / "BIRD_ir").exists()
     read = sorted(set(calls.read_text().split("\n")) - {""})
     own = {(s, c) for c, spec in protocol["visual"]["classes"].items() for s in spec.get("sensor_generation", {})}
     assert ("ir", "BIRD") in own and len(own) > 1          # the shipped protocol's own sets are read too
