@@ -344,7 +344,8 @@ def run_sim2real(real: Path, out: Path, *, config_path: Path | None = None, quic
             try:
                 made = generate_dataset(gen_cfg, folder, cfg.seed + k, workers=1 if quick else vis.workers,
                                         progress=progress, reuse_from=earlier)
-                if made.linked:
+                if made.linked:   # provenance: which sets came from which earlier run
+                    summary["reuse_renders"] = str(reuse_renders)
                     summary.setdefault("synthetic_linked", {})[name] = len(made.linked)
                     log(f"[sim2real] {name}: {len(made.linked)} sequence(s) hard-linked from {reuse_renders} "
                         "(same recipe), not rendered")
