@@ -206,7 +206,7 @@ AtmosphereModel = Literal["user", "tropical", "midlat_summer", "midlat_winter", 
                           "subarctic_winter", "us_standard"]
 
 
-class Atmosphere(_Model):
+class Atmosphere(_Model, OmitWhenUnset):
     """Air at the sensor. LWIR sky and paths come from LOWTRAN7 tables (docs/PHYSICS.md):
 
     - ``model: user`` (default): the sky is interpolated between the AFGL model atmospheres by the
@@ -221,6 +221,14 @@ class Atmosphere(_Model):
     absolute_humidity_g_m3: float | None = Field(default=None, ge=0.0, le=60.0)
     visibility_m: float = Field(default=20000.0, gt=10.0)
     model: AtmosphereModel = "user"
+    lapse_rate_k_per_km: float | None = Field(
+        default=None, ge=-10.0, le=10.0,
+        description="fall of the air temperature with height above the camera (6.5: the ICAO standard atmosphere; "
+                    "negative: an inversion): a target's parts take the air temperature at the target's altitude "
+                    "before their offsets; None: the air at the sensor everywhere (docs/PHYSICS.md)")
+
+    #: added after the scenario format froze: left out of scenario.yaml while unset (older scenes keep their bytes)
+    _OMIT_WHEN_UNSET: ClassVar[tuple[str, ...]] = ("lapse_rate_k_per_km",)
 
     @model_validator(mode="before")
     @classmethod

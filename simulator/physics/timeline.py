@@ -224,6 +224,15 @@ def _part_roles(kind: str) -> tuple[str, ...]:
     }[kind]
 
 
+def _air_at(scenario: Scenario, position: np.ndarray, rig_origin: np.ndarray, air_k: float) -> float | np.ndarray:
+    """The air temperature at the target's altitude per frame (``atmosphere.lapse_rate_k_per_km`` over its
+    height above the camera), or the air at the sensor when no lapse rate is set."""
+    lapse = scenario.atmosphere.lapse_rate_k_per_km
+    if lapse is None:
+        return air_k
+    return air_k - lapse * (position[:, 2] - rig_origin[2]) / 1000.0
+
+
 def _part_temperatures(scenario: Scenario, target: Target, position: np.ndarray, rig_origin: np.ndarray,
                        sky: ThermalSky, times_s: np.ndarray) -> dict[str, np.ndarray]:
     from scenes.defaults import material_for
@@ -254,7 +263,7 @@ def _part_temperatures(scenario: Scenario, target: Target, position: np.ndarray,
             out[role] = np.full(times_s.size, float(value))
         else:
             start, end = offset_for(target, role), offset_for(target, role, end=True)
-            out[role] = air_k + start + (end - start) * ramp
+            out[role] = _air_at(scenario, position, rig_origin, air_k) + start + (end - start) * ramp
     return out
 
 

@@ -155,3 +155,22 @@ def test_rotor_rpm_fluctuation_is_zero_sum_and_correlated():
     lag1 = float(np.corrcoef(x[:-1], x[1:])[0, 1])
     assert lag1 > 0.5                                           # a Gauss-Markov process, not white jitter
     assert np.array_equal(rotor_rpm_fluctuation(rng_for(1, "rotor_detune", 0), 10, 1, 30.0), np.ones((10, 1)))
+
+
+def test_lapse_rate_cools_a_target_by_its_height_above_the_camera_and_is_off_by_default():
+    """ICAO 6.5 K/km: an airliner 1,000 m above the camera flies in air 6.5 K colder, every part by the same
+    amount; a climbing one cools frame by frame; unset, the parts keep the sensor's air (the former model)."""
+    base = _with_trajectory("clear_day_quad", Hover(center_m=(0, 3000, 1001.5), drift_m=0.0), kind="airliner")
+    rig_z = base.camera_rig.position_m[2]
+    assert rig_z == pytest.approx(1.5)
+    cold = base.model_copy(update={"atmosphere": base.atmosphere.model_copy(update={"lapse_rate_k_per_km": 6.5})})
+    plain, lapsed = (build_timeline(s, 0, 4).targets[0].part_temperature_k for s in (base, cold))
+    for role in plain:
+        assert np.allclose(plain[role] - lapsed[role], 6.5, atol=0.01), role
+    assert np.allclose(plain["engine"], base.atmosphere.air_temperature_k + 80.0)   # the offsets stand on the air
+    climb = _with_trajectory("clear_day_quad", Flyby(start_m=(0, 3000, 501.5), velocity_mps=(0, 0, 300)),
+                             kind="airliner")
+    climb = climb.model_copy(update={"atmosphere": climb.atmosphere.model_copy(update={"lapse_rate_k_per_km": 6.5})})
+    wing = build_timeline(climb, 0, 4).targets[0].part_temperature_k["wing"]
+    assert np.all(np.diff(wing) < 0)
+    assert "lapse_rate_k_per_km" not in base.atmosphere.model_dump()    # unset: older scenes keep their bytes
