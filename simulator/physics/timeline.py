@@ -257,13 +257,14 @@ def _part_temperatures(scenario: Scenario, target: Target, position: np.ndarray,
             eps = material_for(target, role).emissivity
             out[role] = np.array([thermal.temperature_for_surface_radiance(r, eps, reflected) for r in surface_needed])
         return out
+    local_air = _air_at(scenario, position, rig_origin, air_k)    # once per target, not per part
     for role in _part_roles(target.kind):
         if mode == "absolute":
             value = target.thermal.absolute_k.get(role, air_k)
             out[role] = np.full(times_s.size, float(value))
         else:
             start, end = offset_for(target, role), offset_for(target, role, end=True)
-            out[role] = _air_at(scenario, position, rig_origin, air_k) + start + (end - start) * ramp
+            out[role] = local_air + start + (end - start) * ramp
     return out
 
 
